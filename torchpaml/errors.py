@@ -1,0 +1,15 @@
+"""Exceptions raised by torchpaml. Each message says what was received, what was expected, and the fix."""
+
+__all__ = ["DataError", "SimulationError", "DomainError"]
+
+
+class DataError(ValueError):
+    """Measured or generated data that cannot be used as given (missing columns, NaN, bad time axis...)."""
+
+
+class SimulationError(RuntimeError):
+    """A simulation that failed: the solution blew up, or the solver could not advance."""
+
+
+class DomainError(ValueError):
+    """An input outside the domain a model is defined on (e.g. |u| > alpha for a Chebyshev residual)."""

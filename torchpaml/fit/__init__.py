@@ -1,0 +1,16 @@
+"""Fitting: stage 1 (physics, prediction error method), stage 2 (residual), the first-order check."""
+
+from torchpaml.fit.first_order import reestimate_shift
+from torchpaml.fit.output_error import minimize_output_error
+from torchpaml.fit.physics_fit import PhysicsFit, fit_physics
+from torchpaml.fit.residual_fit import ResidualFit, fit_chebyshev_hammerstein, fit_residual
+
+__all__ = [
+    "PhysicsFit",
+    "fit_physics",
+    "ResidualFit",
+    "fit_chebyshev_hammerstein",
+    "fit_residual",
+    "reestimate_shift",
+    "minimize_output_error",
+]

@@ -1,0 +1,150 @@
+r"""Named physical parameters with units, constraints, and a fixed/learnable switch.
+
+A physical parameter $\theta$ is stored as an unconstrained tensor $\rho$ and exposed through a
+constraint map $\theta = c(\rho)$ registered with :mod:`torch.nn.utils.parametrize`, so optimisers
+work on $\rho \in \mathbb{R}$ while users read and assign $\theta$ in physical units:
+
+* :class:`Real`: $\theta = \rho$;
+* :class:`Positive`: $\theta = e^{\rho}$, $\rho = \log\theta$;
+* :class:`Interval`: $\theta = a + (b - a)\,\sigma(\rho)$, $\rho = \operatorname{logit}((\theta - a)/(b - a))$.
+
+A fixed parameter keeps ``requires_grad=False`` on $\rho$.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+from torch.nn.utils import parametrize
+
+__all__ = [
+    "Real",
+    "Positive",
+    "Interval",
+    "PhysicalParameter",
+    "register_parameters",
+    "describe_parameters",
+    "format_table",
+]
+
+
+class Real(nn.Module):
+    """Identity constraint: any real value."""
+
+    def forward(self, raw: torch.Tensor) -> torch.Tensor:
+        return raw
+
+    def right_inverse(self, value: torch.Tensor) -> torch.Tensor:
+        return value
+
+    def check(self, name: str, value: float) -> None:
+        if not math.isfinite(value):
+            raise ValueError(f"parameter {name!r} must be finite, got {value}")
+
+    def __repr__(self) -> str:
+        return "real"
+
+
+class Positive(nn.Module):
+    r"""$\theta = e^{\rho} > 0$."""
+
+    def forward(self, raw: torch.Tensor) -> torch.Tensor:
+        return torch.exp(raw)
+
+    def right_inverse(self, value: torch.Tensor) -> torch.Tensor:
+        return torch.log(value)
+
+    def check(self, name: str, value: float) -> None:
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"parameter {name!r} must be positive and finite, got {value}; pass a value > 0")
+
+    def __repr__(self) -> str:
+        return "> 0"
+
+
+class Interval(nn.Module):
+    r"""$\theta = a + (b - a)\,\sigma(\rho) \in (a, b)$."""
+
+    def __init__(self, lower: float, upper: float):
+        super().__init__()
+        if not lower < upper:
+            raise ValueError(f"Interval needs lower < upper, got ({lower}, {upper})")
+        self.lower, self.upper = float(lower), float(upper)
+
+    def forward(self, raw: torch.Tensor) -> torch.Tensor:
+        return self.lower + (self.upper - self.lower) * torch.sigmoid(raw)
+
+    def right_inverse(self, value: torch.Tensor) -> torch.Tensor:
+        return torch.logit((value - self.lower) / (self.upper - self.lower))
+
+    def check(self, name: str, value: float) -> None:
+        if not self.lower < value < self.upper:
+            raise ValueError(
+                f"parameter {name!r} must lie in the open interval ({self.lower}, {self.upper}), got {value}"
+            )
+
+    def __repr__(self) -> str:
+        return f"in ({self.lower:g}, {self.upper:g})"
+
+
+@dataclass(frozen=True)
+class PhysicalParameter:
+    """Declaration of one physical parameter: its initial value, unit, constraint and meaning."""
+
+    name: str
+    value: float
+    unit: str = "-"
+    constraint: nn.Module | None = None
+    meaning: str = ""
+
+
+def register_parameters(module: nn.Module, declarations: list[PhysicalParameter], learn: tuple[str, ...]) -> None:
+    """Create the constrained parameters ``declarations`` on ``module``; only names in ``learn`` get gradients.
+
+    Raises ``ValueError`` for a name in ``learn`` that is not declared, or a value the constraint rejects.
+    """
+    names = [d.name for d in declarations]
+    unknown = sorted(set(learn) - set(names))
+    if unknown:
+        raise ValueError(f"cannot learn unknown parameter(s) {unknown}; {type(module).__name__} has {names}")
+    module._physical = {d.name: d for d in declarations}
+    for d in declarations:
+        constraint = d.constraint if d.constraint is not None else Real()
+        constraint.check(d.name, float(d.value))
+        module.register_parameter(d.name, nn.Parameter(torch.tensor(float(d.value), dtype=torch.float64)))
+        parametrize.register_parametrization(module, d.name, constraint, unsafe=True)
+        getattr(module.parametrizations, d.name).original.requires_grad_(d.name in learn)
+
+
+def describe_parameters(module: nn.Module, prefix: str = "") -> list[dict]:
+    """Rows ``{name, value, unit, constraint, learnable, meaning}`` for every physical parameter below ``module``."""
+    rows = []
+    for path, sub in module.named_modules():
+        for name, decl in getattr(sub, "_physical", {}).items():
+            raw = getattr(sub.parametrizations, name).original
+            rows.append(
+                {
+                    "name": prefix + (f"{path}.{name}" if path else name),
+                    "value": float(getattr(sub, name).detach()),
+                    "unit": decl.unit,
+                    "constraint": repr(getattr(sub.parametrizations, name)[0]),
+                    "learnable": bool(raw.requires_grad),
+                    "meaning": decl.meaning,
+                }
+            )
+    return rows
+
+
+def format_table(rows: list[dict]) -> str:
+    """A plain-text table of :func:`describe_parameters` rows."""
+    header = f"{'parameter':<16} {'value':>12} {'unit':<8} {'constraint':<16} {'status':<8} meaning"
+    lines = [header, "-" * len(header)]
+    for r in rows:
+        status = "learned" if r["learnable"] else "fixed"
+        lines.append(
+            f"{r['name']:<16} {r['value']:>12.6g} {r['unit']:<8} {r['constraint']:<16} {status:<8} {r['meaning']}"
+        )
+    return "\n".join(lines)

@@ -1,0 +1,20 @@
+"""The interface every output residual implements."""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+__all__ = ["AbstractResidual"]
+
+
+class AbstractResidual(nn.Module):
+    r"""An output residual $r = \mathcal R^\gamma[u]$, added to the physics output: $y \approx \hat y + r$.
+
+    ``forward(t, u, y_physics)`` maps t (time,), u (batch, time, n_u) and the physics output
+    y_physics (batch, time, n_y) to r (batch, time, n_y). Residuals that depend on u alone (the
+    Chebyshev-Hammerstein model) ignore ``y_physics``.
+    """
+
+    def forward(self, t: torch.Tensor, u: torch.Tensor, y_physics: torch.Tensor | None = None) -> torch.Tensor:
+        raise NotImplementedError(f"{type(self).__name__} must implement forward(t, u, y_physics)")

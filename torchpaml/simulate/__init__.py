@@ -1,0 +1,8 @@
+"""Simulation: exact LTI discretisation, torchdiffeq ODE integration, differentiable IIR filtering."""
+
+from torchpaml.simulate.iir import iir_filter
+from torchpaml.simulate.interpolation import LinearInterpolant
+from torchpaml.simulate.lti import foh_discretize, simulate_lti
+from torchpaml.simulate.simulator import simulate, uniform_step
+
+__all__ = ["iir_filter", "LinearInterpolant", "foh_discretize", "simulate_lti", "simulate", "uniform_step"]

@@ -1,0 +1,99 @@
+r"""Exact simulation of linear time-invariant physics for piecewise-linear inputs.
+
+For $\dot x = A x + B u$, $y = C x + D u$ and an input that is linear between samples spaced $h$
+apart (first-order hold), the state obeys exactly
+
+$$ x_{k+1} = \Phi x_k + \Gamma_0 u_k + \Gamma_1 u_{k+1}, \qquad
+   \exp\!\begin{pmatrix} A h & B h & 0 \\ 0 & 0 & I \\ 0 & 0 & 0 \end{pmatrix}
+   = \begin{pmatrix} \Phi & \Gamma_a & \Gamma_b \\ 0 & I & I \\ 0 & 0 & I \end{pmatrix}, $$
+
+with $\Gamma_1 = \Gamma_b$, $\Gamma_0 = \Gamma_a - \Gamma_b$. The recursion is run as a transfer
+function $Y(z) = \big[C\,\mathrm{adj}(zI - \Phi)(\Gamma_0 + z\Gamma_1) + D\,p(z)\big]/p(z)\;U(z)$ whose
+characteristic polynomial $p$ and adjugate come from the Faddeev-LeVerrier recursion (matrix
+products and traces only, so derivatives stay finite at repeated eigenvalues, e.g. critical
+damping). The free response to $x_0$ is $\sum_k z^{-k} C\Phi^k x_0 = z\,C\,\mathrm{adj}(zI-\Phi)x_0/p(z)$.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from torchpaml.simulate.iir import iir_filter
+
+__all__ = ["foh_discretize", "faddeev_leverrier", "simulate_lti"]
+
+
+def foh_discretize(A: torch.Tensor, B: torch.Tensor, h: float) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    r"""$(\Phi, \Gamma_0, \Gamma_1)$ of the first-order-hold discretisation; A (n, n), B (n, m)."""
+    n, m = B.shape
+    M = torch.zeros(n + 2 * m, n + 2 * m, dtype=A.dtype, device=A.device)
+    M[:n, :n] = A * h
+    M[:n, n : n + m] = B * h
+    M[n : n + m, n + m :] = torch.eye(m, dtype=A.dtype, device=A.device)
+    E = torch.linalg.matrix_exp(M)
+    Phi, Gamma_a, Gamma_b = E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
+    return Phi, Gamma_a - Gamma_b, Gamma_b
+
+
+def faddeev_leverrier(Phi: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""Characteristic polynomial and adjugate coefficients of $\Phi$ (n, n).
+
+    Returns ``c`` (n + 1,) with $p(z) = \sum_k c_k z^{n-k}$, $c_0 = 1$, and ``N`` (n, n, n) with
+    $\mathrm{adj}(zI - \Phi) = \sum_{k=0}^{n-1} N_k z^{n-1-k}$.
+    """
+    n = Phi.shape[0]
+    eye = torch.eye(n, dtype=Phi.dtype, device=Phi.device)
+    N = [eye]
+    c = [torch.ones((), dtype=Phi.dtype, device=Phi.device)]
+    for k in range(1, n + 1):
+        PN = Phi @ N[-1]
+        c.append(-torch.trace(PN) / k)
+        if k < n:
+            N.append(PN + c[-1] * eye)
+    return torch.stack(c), torch.stack(N)
+
+
+def simulate_lti(
+    A: torch.Tensor,
+    B: torch.Tensor,
+    C: torch.Tensor,
+    D: torch.Tensor,
+    h: float,
+    u: torch.Tensor,
+    x0: torch.Tensor | None = None,
+) -> torch.Tensor:
+    r"""Exact response of $(A, B, C, D)$ to the piecewise-linear input through samples ``u``.
+
+    Args:
+        A, B, C, D: state-space matrices, shapes (n, n), (n, m), (p, n), (p, m).
+        h: sampling interval in seconds (uniform).
+        u: input samples, shape (batch, time, m).
+        x0: initial state, shape (batch, n); zero if omitted.
+
+    Returns:
+        y: shape (batch, time, p).
+    """
+    n, m = B.shape
+    p = C.shape[0]
+    Phi, G0, G1 = foh_discretize(A, B, h)
+    c, N = faddeev_leverrier(Phi)
+    poles = c[1:]
+    # numerator of u_i -> y_j over powers z^{n-k}, k = 0..n
+    CN = torch.einsum("pn,knl->kpl", C, N)  # (n, p, n)
+    num = torch.zeros(n + 1, p, m, dtype=A.dtype, device=A.device)
+    num[:n] = num[:n] + CN @ G1
+    num[1:] = num[1:] + CN @ G0
+    num = num + c[:, None, None] * D[None]
+    b = num.permute(1, 2, 0).reshape(p * m, n + 1)  # channel (j, i)
+    a = poles.expand(p * m, n)
+    x = u[..., None, :].expand(*u.shape[:2], p, m).reshape(*u.shape[:2], p * m)
+    y = iir_filter(x, b, a).reshape(*u.shape[:2], p, m).sum(-1)
+    if x0 is not None:
+        batch, T = u.shape[:2]
+        impulse = torch.zeros(1, T, batch * p, dtype=u.dtype, device=u.device)
+        impulse[:, 0] = 1.0
+        free_num = torch.einsum("kpl,bl->bpk", CN, x0).reshape(batch * p, n)
+        free_num = torch.cat([free_num, torch.zeros_like(free_num[:, :1])], dim=1)
+        free = iir_filter(impulse, free_num, poles.expand(batch * p, n))
+        y = y + free.reshape(T, batch, p).transpose(0, 1)
+    return y

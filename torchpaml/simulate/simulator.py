@@ -1,0 +1,94 @@
+"""One entry point that simulates any physics: exact for linear physics, torchdiffeq otherwise."""
+
+from __future__ import annotations
+
+import torch
+
+from torchpaml.errors import DataError, SimulationError
+from torchpaml.simulate.lti import simulate_lti
+from torchpaml.simulate.ode import simulate_ode
+
+__all__ = ["simulate", "uniform_step"]
+
+
+def uniform_step(t: torch.Tensor, rtol: float = 1e-6) -> float:
+    """The sampling interval of a uniform grid ``t`` (time,); raises :class:`DataError` if not uniform."""
+    if t.dim() != 1 or len(t) < 2:
+        raise DataError(f"time must be a 1-D tensor of at least 2 samples, got shape {tuple(t.shape)}")
+    dt = torch.diff(t)
+    h = float(dt.mean())
+    if not bool(torch.all(dt > 0)):
+        raise DataError("time must be strictly increasing; sort the samples and drop duplicates")
+    if float((dt - h).abs().max()) > rtol * h:
+        raise DataError(
+            f"uniform sampling is required here, but the time steps range from {float(dt.min()):.6g} to "
+            f"{float(dt.max()):.6g} s; resample onto a uniform grid, or use an ODE method (method='dopri5')"
+        )
+    return h
+
+
+def simulate(
+    physics,
+    t: torch.Tensor,
+    u: torch.Tensor,
+    x0: torch.Tensor | None = None,
+    *,
+    method: str = "auto",
+    rtol: float = 1e-7,
+    atol: float = 1e-9,
+    adjoint: bool = False,
+    max_num_steps: int = 1_000_000,
+    knots: torch.Tensor | None = None,
+    blowup: float = 1e8,
+) -> torch.Tensor:
+    r"""Simulate $y = \mathcal H^\theta[u]$ for the piecewise-linear input through the samples.
+
+    Args:
+        physics: an :class:`~torchpaml.physics.AbstractPhysics`.
+        t: sample times in s, shape (time,), shared by the batch.
+        u: input samples, shape (batch, time, n_input), float64.
+        x0: initial state (batch, n_state); rest if omitted.
+        method: ``"auto"`` (exact for linear physics on a uniform grid, else ``"dopri5"``),
+            ``"exact"``, or any torchdiffeq method name.
+        rtol, atol, adjoint, max_num_steps: passed to the torchdiffeq solver.
+        knots: times where the input's slope jumps, stepped on by adaptive solvers (see
+            :func:`~torchpaml.simulate.ode.simulate_ode`); the exact path needs none.
+        blowup: an output beyond this magnitude raises :class:`SimulationError`.
+
+    Returns:
+        y: shape (batch, time, n_output). Differentiable in the physical parameters and ``u``.
+    """
+    if u.dim() != 3 or u.shape[1] != t.shape[-1]:
+        raise DataError(f"u must have shape (batch, time={t.shape[-1]}, channel), got {tuple(u.shape)}")
+    x0 = physics.initial_state(u.shape[0]).to(u) if x0 is None else x0
+    matrices = physics.state_space()
+    if method == "exact" and matrices is None:
+        raise ValueError(f"method='exact' needs linear physics; {type(physics).__name__} is nonlinear. Use 'dopri5'")
+    if method in ("auto", "exact") and matrices is not None:
+        try:
+            h = uniform_step(t)
+        except DataError:
+            if method == "exact":
+                raise
+            h = None
+        if h is not None:
+            y = simulate_lti(*matrices, h, u, x0 if bool(x0.abs().max() > 0) else None)
+            return _checked(y, t, blowup)
+    ode_method = "dopri5" if method in ("auto", "exact") else method
+    states = simulate_ode(
+        physics, t, u, x0, method=ode_method, rtol=rtol, atol=atol, adjoint=adjoint, max_num_steps=max_num_steps,
+        knots=knots,
+    )
+    return _checked(physics.output(states, u), t, blowup)
+
+
+def _checked(y: torch.Tensor, t: torch.Tensor, blowup: float) -> torch.Tensor:
+    bad = ~torch.isfinite(y) | (y.abs() > blowup)
+    if bool(bad.any()):
+        k = int(bad.any(dim=0).any(dim=-1).nonzero()[0])
+        raise SimulationError(
+            f"the simulated output blew up (non-finite or |y| > {blowup:g}) at t = {float(t[k]):.4g} s; the "
+            "parameters are probably unstable or unphysical (e.g. negative damping, wrong sign of stiffness), "
+            "or the input is far larger than the physics is meant for"
+        )
+    return y
