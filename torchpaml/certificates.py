@@ -81,7 +81,7 @@ def incompatibility_certificates(
     draws: int = 20,
     seed: int = 0,
 ) -> Certificate:
-    """|c0|, |c1| (module docstring) for ``draws`` residuals ``draw(generator)`` on $u = \\alpha\\cos\\omega t$.
+    r"""|c0|, |c1| (module docstring) for ``draws`` residuals ``draw(generator)`` on $u = \\alpha\\cos\\omega t$.
 
     Args:
         physics: the physics $\\mathcal H^\\theta$ at the parameter value of interest.

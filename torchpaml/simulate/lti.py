@@ -11,7 +11,10 @@ with $\Gamma_1 = \Gamma_b$, $\Gamma_0 = \Gamma_a - \Gamma_b$. The recursion is r
 function $Y(z) = \big[C\,\mathrm{adj}(zI - \Phi)(\Gamma_0 + z\Gamma_1) + D\,p(z)\big]/p(z)\;U(z)$ whose
 characteristic polynomial $p$ and adjugate come from the Faddeev-LeVerrier recursion (matrix
 products and traces only, so derivatives stay finite at repeated eigenvalues, e.g. critical
-damping). The free response to $x_0$ is $\sum_k z^{-k} C\Phi^k x_0 = z\,C\,\mathrm{adj}(zI-\Phi)x_0/p(z)$.
+damping). The z-transform of the recursion carries the boundary term $-z\Gamma_1 u_0$, so the
+transfer function alone starts from the state $\Gamma_1 u_0$; the free response to
+$x_0 - \Gamma_1 u_0$, $\sum_k z^{-k} C\Phi^k (x_0 - \Gamma_1 u_0) = z\,C\,\mathrm{adj}(zI-\Phi)(x_0 - \Gamma_1 u_0)/p(z)$,
+is added to start from $x_0$ exactly.
 """
 
 from __future__ import annotations
@@ -88,12 +91,17 @@ def simulate_lti(
     a = poles.expand(p * m, n)
     x = u[..., None, :].expand(*u.shape[:2], p, m).reshape(*u.shape[:2], p * m)
     y = iir_filter(x, b, a).reshape(*u.shape[:2], p, m).sum(-1)
-    if x0 is not None:
-        batch, T = u.shape[:2]
-        impulse = torch.zeros(1, T, batch * p, dtype=u.dtype, device=u.device)
-        impulse[:, 0] = 1.0
-        free_num = torch.einsum("kpl,bl->bpk", CN, x0).reshape(batch * p, n)
-        free_num = torch.cat([free_num, torch.zeros_like(free_num[:, :1])], dim=1)
-        free = iir_filter(impulse, free_num, poles.expand(batch * p, n))
-        y = y + free.reshape(T, batch, p).transpose(0, 1)
-    return y
+    start = -u[:, 0] @ G1.T if x0 is None else x0 - u[:, 0] @ G1.T
+    return y + _free_response(CN, poles, start, u)
+
+
+def _free_response(CN: torch.Tensor, poles: torch.Tensor, x0: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+    r"""$y_k = C\Phi^k x_0$ as the impulse response of $z\,C\,\mathrm{adj}(zI - \Phi)x_0/p(z)$; (batch, time, p)."""
+    n, p = CN.shape[0], CN.shape[1]
+    batch, T = u.shape[:2]
+    impulse = torch.zeros(1, T, batch * p, dtype=u.dtype, device=u.device)
+    impulse[:, 0] = 1.0
+    numerator = torch.einsum("kpl,bl->bpk", CN, x0).reshape(batch * p, n)
+    numerator = torch.cat([numerator, torch.zeros_like(numerator[:, :1])], dim=1)
+    free = iir_filter(impulse, numerator, poles.expand(batch * p, n))
+    return free.reshape(T, batch, p).transpose(0, 1)

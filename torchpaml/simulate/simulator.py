@@ -72,7 +72,7 @@ def simulate(
                 raise
             h = None
         if h is not None:
-            y = simulate_lti(*matrices, h, u, x0 if bool(x0.abs().max() > 0) else None)
+            y = simulate_lti(*matrices, h, u, x0)
             return _checked(y, t, blowup)
     ode_method = "dopri5" if method in ("auto", "exact") else method
     states = simulate_ode(

@@ -1,0 +1,101 @@
+"""Bad input gets a clear error naming the problem and the fix; each one is pinned here."""
+
+import subprocess
+import sys
+
+import pytest
+import torch
+
+from torchpaml import (
+    AbstractPhysics,
+    ChebyshevHammerstein,
+    DataError,
+    DomainError,
+    Experiment,
+    Oscillator,
+    SimulationError,
+    simulate,
+)
+from torchpaml.parameters import PhysicalParameter, Real, register_parameters
+from torchpaml.signals import sine, time_grid
+
+
+def _write(tmp_path, text):
+    path = tmp_path / "data.csv"
+    path.write_text(text)
+    return path
+
+
+def test_missing_column(tmp_path):
+    with pytest.raises(DataError, match=r"missing column\(s\) \['y'\].*expected it to contain 't,u,y'"):
+        Experiment.from_csv(_write(tmp_path, "t,u\n0,1\n1,2\n"))
+
+
+def test_nan_value(tmp_path):
+    with pytest.raises(DataError, match="column 'y' has 1 NaN/inf value.*row 1.*drop or interpolate"):
+        Experiment.from_csv(_write(tmp_path, "t,u,y\n0,1,1\n1,2,nan\n2,3,3\n"))
+
+
+def test_time_not_strictly_increasing(tmp_path):
+    with pytest.raises(DataError, match=r"strictly increasing.*t\[2\].*remove duplicate"):
+        Experiment.from_csv(_write(tmp_path, "t,u,y\n0,1,1\n1,2,2\n1,3,3\n"))
+
+
+def test_non_uniform_sampling_where_uniform_is_required(tmp_path):
+    experiment = Experiment.from_csv(_write(tmp_path, "t,u,y\n0,1,1\n1,2,2\n3,3,3\n"))
+    with pytest.raises(DataError, match="uniform sampling is required.*resample"):
+        experiment.dt
+    with pytest.raises(DataError, match="uniform sampling is required"):
+        simulate(Oscillator(), experiment.t, experiment.u[None], method="exact")
+
+
+def test_length_mismatch():
+    with pytest.raises(DataError, match="length mismatch, t has 3 samples, u 3, y 2"):
+        Experiment(torch.arange(3.0), torch.zeros(3), torch.zeros(2))
+
+
+def test_empty_file(tmp_path):
+    with pytest.raises(DataError, match="is empty"):
+        Experiment.from_csv(_write(tmp_path, ""))
+    with pytest.raises(DataError, match="no data rows"):
+        Experiment.from_csv(_write(tmp_path, "t,u,y\n"))
+
+
+def test_input_beyond_the_chebyshev_domain_raises():
+    t = time_grid(2.0, 0.01)
+    with pytest.raises(DomainError, match=r"\|u\| = 5.*alpha = 4.*alpha >= 5"):
+        ChebyshevHammerstein(4.0)(t, sine(t, 5.0, 1.0))
+
+
+def test_unstable_parameters_are_rejected():
+    with pytest.raises(ValueError, match="must be positive"):
+        Oscillator(zeta=-0.2)
+
+
+class _Runaway(AbstractPhysics):
+    state_names = ("x",)
+
+    def __init__(self):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("rate", 3.0, "1/s", Real())], ())
+
+    def derivative(self, t, x, u):
+        return self.rate * x**3 + u
+
+    def output(self, x, u):
+        return x
+
+
+def test_ode_that_blows_up_raises_simulation_error():
+    t = time_grid(5.0, 0.01)
+    with pytest.raises(SimulationError, match="blows up|blew up"):
+        simulate(_Runaway(), t, sine(t, 3.0, 1.0), max_num_steps=2000)
+
+
+def test_cli_exits_non_zero_with_a_message(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "torchpaml", "paper", "--seeds", "0", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode != 0 and "--seeds must be at least 1" in result.stderr

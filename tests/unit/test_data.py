@@ -1,0 +1,30 @@
+"""Experiment I/O round trips."""
+
+import torch
+
+from torchpaml import Experiment
+
+
+def _experiment():
+    t = torch.arange(50, dtype=torch.float64) * 0.1
+    return Experiment(t, torch.sin(t), torch.cos(t), name="demo", metadata={"alpha": 4.0, "seed": 1})
+
+
+def test_csv_round_trip_is_exact(tmp_path):
+    original = _experiment()
+    loaded = Experiment.from_csv(original.to_csv(tmp_path / "demo.csv"))
+    assert torch.equal(loaded.t, original.t) and torch.equal(loaded.u, original.u) and torch.equal(loaded.y, original.y)
+    assert loaded.metadata == original.metadata and loaded.name == "demo"
+    assert (tmp_path / "demo.csv").read_text().splitlines()[1] == "t,u,y"
+
+
+def test_npz_round_trip_is_exact(tmp_path):
+    original = _experiment()
+    loaded = Experiment.from_npz(original.to_npz(tmp_path / "demo.npz"))
+    assert torch.equal(loaded.y, original.y) and loaded.metadata == original.metadata
+
+
+def test_batch_shapes_and_dt():
+    t, u, y = _experiment().batch()
+    assert t.shape == (50,) and u.shape == (1, 50, 1) and y.shape == (1, 50, 1)
+    assert abs(_experiment().dt - 0.1) < 1e-12
