@@ -7,7 +7,16 @@ import torch
 from torchpaml.parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml.physics.base import SecondOrderPhysics
 
-__all__ = ["Oscillator"]
+__all__ = ["Oscillator", "damped_parameters"]
+
+
+def damped_parameters(zeta: float, omega0: float, gain: float, frequency_meaning: str) -> list[PhysicalParameter]:
+    """The declarations (ζ, ω0, g) shared by the damped second-order models."""
+    return [
+        PhysicalParameter("zeta", zeta, "-", Positive(), "damping ratio"),
+        PhysicalParameter("omega0", omega0, "rad/s", Positive(), frequency_meaning),
+        PhysicalParameter("gain", gain, "1/s^2", Real(), "input gain"),
+    ]
 
 
 class Oscillator(SecondOrderPhysics):
@@ -25,15 +34,7 @@ class Oscillator(SecondOrderPhysics):
 
     def __init__(self, zeta: float = 0.5, omega0: float = 2.0, gain: float = 1.0, *, learn=("zeta",)):
         super().__init__()
-        register_parameters(
-            self,
-            [
-                PhysicalParameter("zeta", zeta, "-", Positive(), "damping ratio"),
-                PhysicalParameter("omega0", omega0, "rad/s", Positive(), "natural frequency"),
-                PhysicalParameter("gain", gain, "1/s^2", Real(), "input gain"),
-            ],
-            tuple(learn),
-        )
+        register_parameters(self, damped_parameters(zeta, omega0, gain, "natural frequency"), tuple(learn))
 
     def acceleration(self, t, x, v, u):
         return self.gain * u - 2 * self.zeta * self.omega0 * v - self.omega0**2 * x

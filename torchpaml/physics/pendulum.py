@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import torch
 
-from torchpaml.parameters import PhysicalParameter, Positive, Real, register_parameters
+from torchpaml.parameters import register_parameters
 from torchpaml.physics.base import SecondOrderPhysics
+from torchpaml.physics.oscillator import damped_parameters
 
 __all__ = ["Pendulum"]
 
@@ -20,15 +21,7 @@ class Pendulum(SecondOrderPhysics):
 
     def __init__(self, zeta: float = 0.5, omega0: float = 2.0, gain: float = 1.0, *, learn=("zeta",)):
         super().__init__()
-        register_parameters(
-            self,
-            [
-                PhysicalParameter("zeta", zeta, "-", Positive(), "damping ratio"),
-                PhysicalParameter("omega0", omega0, "rad/s", Positive(), "small-signal natural frequency"),
-                PhysicalParameter("gain", gain, "1/s^2", Real(), "input gain"),
-            ],
-            tuple(learn),
-        )
+        register_parameters(self, damped_parameters(zeta, omega0, gain, "small-signal natural frequency"), tuple(learn))
 
     def acceleration(self, t, x, v, u):
         return self.gain * u - 2 * self.zeta * self.omega0 * v - self.omega0**2 * torch.sin(x)
