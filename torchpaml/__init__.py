@@ -9,8 +9,8 @@ from torchpaml.certificates import Certificate, draw_chebyshev, draw_mlp, incomp
 from torchpaml.data import Experiment
 from torchpaml.errors import DataError, DomainError, SimulationError
 from torchpaml.fit import (
-    PhysicsFit,
-    ResidualFit,
+    PhysicsEstimate,
+    ResidualEstimate,
     fit_chebyshev_hammerstein,
     fit_physics,
     fit_residual,
@@ -37,10 +37,10 @@ __all__ = [
     "Oscillator",
     "Pendulum",
     "PhysicalParameter",
-    "PhysicsFit",
+    "PhysicsEstimate",
     "Positive",
     "Real",
-    "ResidualFit",
+    "ResidualEstimate",
     "SecondOrderPhysics",
     "SimulationError",
     "draw_chebyshev",

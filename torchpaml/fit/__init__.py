@@ -2,13 +2,13 @@
 
 from torchpaml.fit.first_order import reestimate_shift
 from torchpaml.fit.output_error import minimize_output_error
-from torchpaml.fit.physics_fit import PhysicsFit, fit_physics
-from torchpaml.fit.residual_fit import ResidualFit, fit_chebyshev_hammerstein, fit_residual
+from torchpaml.fit.physics_fit import PhysicsEstimate, fit_physics
+from torchpaml.fit.residual_fit import ResidualEstimate, fit_chebyshev_hammerstein, fit_residual
 
 __all__ = [
-    "PhysicsFit",
+    "PhysicsEstimate",
     "fit_physics",
-    "ResidualFit",
+    "ResidualEstimate",
     "fit_chebyshev_hammerstein",
     "fit_residual",
     "reestimate_shift",

@@ -19,12 +19,14 @@ __all__ = ["reestimate_shift"]
 def reestimate_shift(physics, residual, t, u, y, **fit_options) -> dict[str, float]:
     r"""$\{\theta: \hat\theta(y - r) - \hat\theta(y)\}$ for the learnable parameters; ``physics`` is left as it is.
 
-    ``residual`` must depend on u alone (``residual(t, u)``), as the Chebyshev-Hammerstein model does.
+    ``residual`` is either a module that depends on u alone (``residual(t, u)``, as the
+    Chebyshev-Hammerstein model does) or the residual's output r itself, a tensor shaped like y
+    (for residuals that also read the physics output, evaluate them at the current $\hat y$).
     ``fit_options`` are those of :func:`~torchpaml.fit.fit_physics` (e.g. ``bounds``).
     """
     before = {n: v for n, v in physics.physical_parameters().items() if n in physics.learnable_names()}
     with torch.no_grad():
-        compensated = y - residual(t, u)
+        compensated = y - (residual if isinstance(residual, torch.Tensor) else residual(t, u))
     refit = copy.deepcopy(physics)
     after = fit_physics(refit, t, u, compensated, **fit_options).parameters
     return {name: after[name] - before[name] for name in before}

@@ -16,11 +16,11 @@ from scipy.optimize import minimize_scalar
 from torchpaml.fit.output_error import minimize_output_error
 from torchpaml.metrics import mismatch
 
-__all__ = ["PhysicsFit", "fit_physics"]
+__all__ = ["PhysicsEstimate", "fit_physics"]
 
 
 @dataclass
-class PhysicsFit:
+class PhysicsEstimate:
     """Result of :func:`fit_physics`: parameters in physical units and the final mismatch (fraction)."""
 
     parameters: dict[str, float]
@@ -39,7 +39,7 @@ def fit_physics(
     max_iter: int = 200,
     xatol: float = 1e-8,
     **simulate_options,
-) -> PhysicsFit:
+) -> PhysicsEstimate:
     """Fit the learnable physical parameters of ``physics`` in place to (u, y) of shape (batch, time, ch).
 
     Args:
@@ -72,4 +72,4 @@ def fit_physics(
     with torch.no_grad():
         final = mismatch(y, physics(t, u, **simulate_options))
     values = physics.physical_parameters()
-    return PhysicsFit({n: values[n] for n in names}, final, iterations, method)
+    return PhysicsEstimate({n: values[n] for n in names}, final, iterations, method)

@@ -32,11 +32,13 @@ then uses the exact discretisation instead of an ODE solver.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import torch
 from torch import nn
 from torch.nn.utils import parametrize
 
-from torchpaml.parameters import describe_parameters, format_table
+from torchpaml.parameters import Interval, describe_parameters, format_table
 
 __all__ = ["AbstractPhysics", "SecondOrderPhysics"]
 
@@ -101,6 +103,28 @@ class AbstractPhysics(nn.Module):
             owner._physical[leaf].constraint.check(name, float(value))
             with torch.no_grad():
                 setattr(owner, leaf, torch.tensor(float(value), dtype=torch.float64))
+        return self
+
+    def bound(self, name: str, lower: float, upper: float) -> AbstractPhysics:
+        r"""Constrain parameter ``name`` to the open interval (lower, upper) from now on; returns ``self``.
+
+        The parameter keeps its value and its fixed/learned status; its parametrisation becomes
+        :class:`~torchpaml.parameters.Interval` (gradient-based fits then cannot leave the interval).
+        """
+        owner, leaf = self._owner(name)
+        if leaf not in getattr(owner, "_physical", {}):
+            raise ValueError(f"{self.display_name} has no physical parameter {name!r}")
+        value = float(getattr(owner, leaf).detach())
+        interval = Interval(lower, upper)
+        try:
+            interval.check(name, value)
+        except ValueError as err:
+            raise ValueError(f"{err}; start {name} inside the bounds, e.g. assign({name}=...)") from None
+        learn = getattr(owner.parametrizations, leaf).original.requires_grad
+        parametrize.remove_parametrizations(owner, leaf, leave_parametrized=True)
+        parametrize.register_parametrization(owner, leaf, interval, unsafe=True)
+        getattr(owner.parametrizations, leaf).original.requires_grad_(learn)
+        owner._physical[leaf] = replace(owner._physical[leaf], constraint=interval)
         return self
 
     def _owner(self, name: str) -> tuple[nn.Module, str]:
