@@ -1,4 +1,8 @@
-"""The ``torchpaml`` command line. Errors in the user's input exit non-zero with a one-line message."""
+"""The ``torchpaml`` command line. Errors in the user's input exit non-zero with a one-line message.
+
+``torchpaml fit|validate|test --config FILE.yaml`` trains through ``LightningCLI``
+(:mod:`torchpaml.training.cli`); ``torchpaml paper`` reproduces the paper.
+"""
 
 from __future__ import annotations
 
@@ -35,10 +39,26 @@ def _paper_arguments(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(run=_paper)
 
 
+LIGHTNING_COMMANDS = ("fit", "validate", "test")
+
+
+def _lightning(argv: list[str], prog: str) -> None:
+    from torchpaml.training.cli import run_lightning
+
+    try:
+        run_lightning(argv)
+    except (DataError, DomainError, SimulationError) as err:
+        print(f"{prog}: error: {err}", file=sys.stderr)
+        raise SystemExit(2) from None
+
+
 def main(argv: list[str] | None = None, prog: str = "torchpaml") -> None:
     """Entry point of the ``torchpaml`` console script."""
     argv = sys.argv[1:] if argv is None else argv + sys.argv[1:]
-    parser = argparse.ArgumentParser(prog=prog, description=__doc__)
+    if argv and argv[0] in LIGHTNING_COMMANDS:
+        _lightning(argv, prog)
+        return
+    parser = argparse.ArgumentParser(prog=prog, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True)
     _paper_arguments(commands.add_parser("paper", help="reproduce the paper's numerical results"))
     args = parser.parse_args(argv)
