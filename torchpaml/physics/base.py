@@ -76,6 +76,12 @@ class AbstractPhysics(nn.Module):
 
         return simulate(self, t, u, x0, **options)
 
+    def __add__(self, effect):
+        """``physics + effect`` -> :class:`~torchpaml.physics.ComposedModel` (second-order physics only)."""
+        from torchpaml.physics.composed import compose
+
+        return compose(self, effect)
+
     # -- parameters --------------------------------------------------------------------------
     def physical_parameters(self) -> dict[str, float]:
         """Current values in physical units, ``{name: value}``."""

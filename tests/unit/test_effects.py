@@ -1,0 +1,109 @@
+"""The effect library and ``physics + effect`` composition, against hand-written models."""
+
+import pytest
+import torch
+
+from torchpaml import Oscillator, Pendulum, simulate
+from torchpaml.physics import (
+    EFFECTS,
+    ComposedModel,
+    CubicStiffness,
+    DeadZone,
+    InputSaturation,
+    OutputSaturation,
+    PendulumRestoring,
+    QuadraticDamping,
+    default_effects,
+)
+from torchpaml.physics.effects import _tanh_ratio
+from torchpaml.signals import pseudorandom, pseudorandom_knots, sine
+
+TOL = dict(rtol=1e-7, atol=1e-9)
+
+
+def test_the_library_has_every_effect_the_issue_names():
+    assert set(EFFECTS) == {
+        "cubic_stiffness", "quadratic_stiffness", "pendulum_restoring", "coulomb_friction", "quadratic_damping",
+        "input_saturation", "output_saturation", "constant_force", "dead_zone",
+    }
+
+
+@pytest.mark.parametrize("effect", default_effects(), ids=lambda e: e.name)
+def test_every_effect_at_zero_strength_leaves_the_physics_unchanged(effect, grid):
+    u = pseudorandom(grid, 1.0, seed=1)
+    base = Oscillator(zeta=0.3, omega0=2.0)
+    with torch.no_grad():
+        exact = simulate(base, grid, u)
+        composed = simulate(base + effect, grid, u, knots=pseudorandom_knots(grid), **TOL)
+    assert torch.allclose(composed, exact, rtol=0, atol=1e-6)  # dopri5 at rtol 1e-7 against the exact path
+
+
+def test_pendulum_restoring_at_full_strength_is_the_pendulum(grid):
+    u = sine(grid, 2.0, 1.0)
+    with torch.no_grad():
+        composed = simulate(Oscillator(zeta=0.5, omega0=2.0) + PendulumRestoring(lam=1.0), grid, u, **TOL)
+        pendulum = simulate(Pendulum(zeta=0.5, omega0=2.0), grid, u, **TOL)
+    assert torch.allclose(torch.sin(composed), pendulum, rtol=0, atol=1e-6)  # Pendulum's output is sin x
+
+
+def test_composed_acceleration_is_the_sum_of_the_terms():
+    model = Oscillator(zeta=0.2, omega0=1.5, gain=2.0) + CubicStiffness(k3=0.7) + QuadraticDamping(c2=0.3)
+    x, v, u = torch.randn(3, 5, dtype=torch.float64)
+    expected = 2.0 * u - 2 * 0.2 * 1.5 * v - 1.5**2 * x - 0.7 * x**3 - 0.3 * v * v.abs()
+    assert torch.allclose(model.acceleration(None, x, v, u), expected, rtol=1e-14, atol=0)
+
+
+def test_saturations_and_dead_zone_match_their_formulas():
+    u = torch.linspace(-3, 3, 61, dtype=torch.float64)
+    assert torch.allclose(InputSaturation(s=0.5).input_map(u), 2.0 * torch.tanh(u / 2.0), rtol=1e-14, atol=0)
+    assert torch.allclose(OutputSaturation(s=0.25).output_map(u), 4.0 * torch.tanh(u / 4.0), rtol=1e-14, atol=0)
+    expected = torch.where(u.abs() > 1.0, u - torch.sign(u), torch.zeros_like(u))
+    assert torch.allclose(DeadZone(d=1.0).input_map(u), expected, rtol=0, atol=1e-15)
+
+
+def test_the_saturation_quotient_is_smooth_through_zero_strength():
+    z = torch.linspace(-2, 2, 9, dtype=torch.float64)
+    for s in (0.0, 1e-9, 1e-6, 1e-3):
+        value = _tanh_ratio(torch.tensor(s, dtype=torch.float64), z)
+        exact = z if s == 0 else torch.tanh(s * z) / s
+        assert torch.allclose(value, exact, rtol=1e-12, atol=0)
+    s = torch.tensor(0.0, dtype=torch.float64, requires_grad=True)
+    assert torch.autograd.gradcheck(lambda s: _tanh_ratio(s, z), (s,))  # d/ds at s = 0 exists (it is 0)
+
+
+def test_composition_flattens_names_parameters_and_rejects_clashes():
+    model = Oscillator(zeta=0.3) + CubicStiffness() + QuadraticDamping()
+    assert isinstance(model, ComposedModel) and list(model.effects) == ["cubic_stiffness", "quadratic_damping"]
+    assert model.display_name == "Oscillator + cubic_stiffness + quadratic_damping"
+    assert set(model.physical_parameters()) == {"zeta", "omega0", "gain", "cubic_stiffness.k3", "quadratic_damping.c2"}
+    assert model.learnable_names() == ["zeta", "cubic_stiffness.k3", "quadratic_damping.c2"]
+    model.assign(**{"cubic_stiffness.k3": 1.5, "zeta": 0.4}).set_learnable("omega0")
+    assert model.physical_parameters()["cubic_stiffness.k3"] == 1.5 and "omega0" in model.learnable_names()
+    assert "- k3*x^3" in model.describe()
+    with pytest.raises(ValueError, match=r"effect\(s\) \['cubic_stiffness'\] added twice"):
+        model + CubicStiffness()
+    with pytest.raises(TypeError, match="can only add an AbstractEffect"):
+        Oscillator() + 3.0
+
+
+def test_effects_need_second_order_physics():
+    from torchpaml.physics import AbstractPhysics
+
+    class Tank(AbstractPhysics):
+        state_names = ("level",)
+
+    with pytest.raises(TypeError, match="not a SecondOrderPhysics"):
+        Tank() + CubicStiffness()
+
+
+def test_gradients_reach_effect_parameters_through_the_ode(grid):
+    t = grid[:500]
+    u, knots = pseudorandom(t, 1.0, seed=3), pseudorandom_knots(t)
+    model = Oscillator(zeta=0.3, learn=()) + CubicStiffness(k3=0.5)
+    y = simulate(model, t, u, knots=knots, **TOL)
+    (gradient,) = torch.autograd.grad(y.pow(2).sum(), [model.effects["cubic_stiffness"].parametrizations.k3.original])
+    step = 1e-3  # central difference: truncation O(step^2) ~ 1e-6, solver noise rtol/step ~ 1e-4 relative
+    with torch.no_grad():
+        up = simulate(model.assign(**{"cubic_stiffness.k3": 0.5 + step}), t, u, knots=knots, **TOL).pow(2).sum()
+        down = simulate(model.assign(**{"cubic_stiffness.k3": 0.5 - step}), t, u, knots=knots, **TOL).pow(2).sum()
+    assert float(gradient) == pytest.approx(float(up - down) / (2 * step), rel=1e-3)

@@ -1,0 +1,110 @@
+r"""``physics + effect``: second-order physics with extra effects, as one physics model.
+
+$$ \ddot x = a_{\text{base}}(t, x, v, \tilde u) + \sum_e F_e(x, v, u), \qquad
+   \tilde u = m_{\text{in}}(u), \qquad y = m_{\text{out}}(h_{\text{base}}(x)), $$
+
+with the input maps $m_{\text{in}}$ and output maps $m_{\text{out}}$ of the effects applied in the
+order they were added. Parameters keep their names: the base's (``zeta``, ``omega0``, ...) and each
+effect's under its name (``cubic_stiffness.k3``). Composition flattens:
+``(Oscillator() + CubicStiffness()) + QuadraticDamping()`` is one ``ComposedModel`` with two effects,
+and adding an effect whose name is already present raises ``ValueError``.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from torchpaml.parameters import describe_parameters
+from torchpaml.physics.base import SecondOrderPhysics
+from torchpaml.physics.effects import AbstractEffect
+
+__all__ = ["ComposedModel", "compose"]
+
+
+def compose(physics, effect: AbstractEffect) -> ComposedModel:
+    """``physics + effect`` (see the module docstring)."""
+    if not isinstance(effect, AbstractEffect):
+        raise TypeError(f"can only add an AbstractEffect to physics, got {type(effect).__name__}")
+    if isinstance(physics, ComposedModel):
+        return ComposedModel(physics.base, [*physics.effects.values(), effect])
+    return ComposedModel(physics, [effect])
+
+
+class ComposedModel(SecondOrderPhysics):
+    """``base`` (second-order physics) with ``effects`` (module docstring). Nonlinear: simulated by an ODE solver."""
+
+    def __init__(self, base: SecondOrderPhysics, effects: list[AbstractEffect]):
+        super().__init__()
+        if not isinstance(base, SecondOrderPhysics):
+            raise TypeError(
+                f"effects act on second-order (mechanical) physics with state (position, velocity); "
+                f"{type(base).__name__} is not a SecondOrderPhysics, so write the effect into your own physics instead"
+            )
+        names = [e.name for e in effects]
+        clashes = sorted({n for n in names if names.count(n) > 1})
+        if clashes:
+            raise ValueError(f"effect(s) {clashes} added twice; each effect may appear once in a model")
+        if not all(names):
+            raise ValueError("every effect needs a non-empty class attribute `name`")
+        self.base = base
+        self.effects = nn.ModuleDict({e.name: e for e in effects})
+
+    def acceleration(self, t, x, v, u):
+        forced = u
+        for effect in self.effects.values():
+            forced = effect.input_map(forced)
+        a = self.base.acceleration(t, x, v, forced)
+        for effect in self.effects.values():
+            extra = effect.force(self.base, x, v, u)
+            if extra is not None:
+                a = a + extra
+        return a
+
+    def output(self, x, u):
+        y = self.base.output(x, u)
+        for effect in self.effects.values():
+            y = effect.output_map(y)
+        return y
+
+    # -- names: the base's parameters unprefixed, the effects' under their names ---------------
+    def _rows(self) -> list[dict]:
+        rows = describe_parameters(self.base)
+        for name, effect in self.effects.items():
+            rows += describe_parameters(effect, prefix=f"{name}.")
+        return rows
+
+    def physical_parameters(self) -> dict[str, float]:
+        return {r["name"]: r["value"] for r in self._rows()}
+
+    def learnable_names(self) -> list[str]:
+        return [r["name"] for r in self._rows() if r["learnable"]]
+
+    def describe(self) -> str:
+        from torchpaml.parameters import format_table
+
+        return f"{self.display_name}: {self.equation()}\n{format_table(self._rows())}"
+
+    def _owner(self, name: str) -> tuple[nn.Module, str]:
+        head, _, leaf = name.partition(".")
+        if leaf and head in self.effects:
+            return self.effects[head], leaf
+        return self.base, name
+
+    def set_learnable(self, *names: str, learn: bool = True) -> ComposedModel:
+        known = set(self.physical_parameters())
+        for name in names:
+            if name not in known:
+                raise ValueError(f"{self.display_name} has no physical parameter {name!r}; known: {sorted(known)}")
+            owner, leaf = self._owner(name)
+            getattr(owner.parametrizations, leaf).original.requires_grad_(learn)
+        return self
+
+    def equation(self) -> str:
+        """The model in words: the base's class and each effect's term."""
+        return " ".join([type(self.base).__name__.removeprefix("Parametrized"),
+                         *(e.equation for e in self.effects.values())])
+
+    @property
+    def display_name(self) -> str:
+        return " + ".join([self.base.display_name, *self.effects])
