@@ -2,7 +2,7 @@
 PYTHON ?= python3
 OUT ?= results/paper
 
-.PHONY: install demo test bench
+.PHONY: install demo test bench contrast
 
 install:
 	# torch==2.13.0 first: a CPU build; a bare `torch` requirement would pull a multi-GB CUDA build.
@@ -18,3 +18,6 @@ test: install
 bench: install
 	$(PYTHON) benchmarks/bench_simulation.py --sizes 8000 800000
 	$(PYTHON) benchmarks/bench_reproduction.py
+
+contrast: install
+	$(PYTHON) experiments/contrast/run.py --out results/contrast

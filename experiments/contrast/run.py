@@ -59,19 +59,25 @@ def row(cli, alpha: float, residual: str, scheme: str, signal: str, zeta_init: f
     }
 
 
-def contrast(out: Path, quick: bool) -> list[dict]:
+def contrast(out: Path, quick: bool) -> tuple[list[dict], float]:
+    """Every run, in order; ``contrast.json`` is rewritten after each, so an interrupted sweep keeps its rows."""
     rows = []
+
+    def keep(new: dict) -> None:
+        rows.append(new)
+        (out / "contrast.json").write_text(json.dumps(rows, indent=2))
+
     for alpha in (4, 10):
         for residual in RESIDUALS:
             cli = fit(f"alpha{alpha}_{residual}", out, f"two_stage_alpha{alpha}_{residual}", quick)
-            rows.append(row(cli, float(alpha), residual, "two_stage", "pseudorandom", 1.0))
+            keep(row(cli, float(alpha), residual, "two_stage", "pseudorandom", 1.0))
     estimate = fit("alpha4_physics", out, "physics_alpha4", quick).model.physics.physical_parameters()["zeta"]
     for residual in RESIDUALS:
         for factor in (0.5, 1.0, 2.0):
             start = factor * estimate
             cli = fit(f"joint_alpha4_{residual}", out, f"joint_alpha4_{residual}_zeta{start:.4f}", quick,
                       f"--model.init_args.physics.init_args.zeta={start}")
-            rows.append(row(cli, 4.0, residual, "joint", "sine", start))
+            keep(row(cli, 4.0, residual, "joint", "sine", start))
     return rows, estimate
 
 
@@ -99,7 +105,6 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     rows, estimate = contrast(out, args.quick)
-    (out / "contrast.json").write_text(json.dumps(rows, indent=2))
     table = markdown(rows, estimate)
     (out / "contrast.md").write_text(table + "\n")
     print(table)
