@@ -16,6 +16,7 @@ them). Writes ``DIR/contrast.json``, a list of rows
   physics-only estimate (a PhysicsFit run first).
 
 ``--quick`` shortens every run to a couple of epochs on 20 s records (a smoke test, not a result).
+``--only PREFIX ...`` re-trains the matching runs and keeps the other rows of ``DIR/contrast.json``.
 """
 
 from __future__ import annotations
@@ -59,31 +60,52 @@ def row(cli, alpha: float, residual: str, scheme: str, signal: str, zeta_init: f
     }
 
 
-def contrast(out: Path, quick: bool) -> tuple[list[dict], float]:
-    """Every run, in order; ``contrast.json`` is rewritten after each, so an interrupted sweep keeps its rows."""
+def contrast(out: Path, quick: bool, only: list[str] | None = None) -> list[dict]:
+    """Every run, in order; ``contrast.json`` is rewritten after each, so an interrupted sweep keeps its rows.
+
+    With ``only`` (run-name prefixes), just the matching runs are trained; the other rows are
+    taken from the existing ``contrast.json``.
+    """
+    path = out / "contrast.json"
+    existing = json.loads(path.read_text()) if only and path.exists() else []
     rows = []
 
-    def keep(new: dict) -> None:
-        rows.append(new)
-        (out / "contrast.json").write_text(json.dumps(rows, indent=2))
+    def selected(run: str) -> bool:
+        return not only or any(run.startswith(prefix) for prefix in only)
+
+    def keep(*new: dict) -> None:
+        rows.extend(new)
+        path.write_text(json.dumps(rows, indent=2))
 
     for alpha in (4, 10):
         for residual in RESIDUALS:
-            cli = fit(f"alpha{alpha}_{residual}", out, f"two_stage_alpha{alpha}_{residual}", quick)
-            keep(row(cli, float(alpha), residual, "two_stage", "pseudorandom", 1.0))
-    estimate = fit("alpha4_physics", out, "physics_alpha4", quick).model.physics.physical_parameters()["zeta"]
-    for residual in RESIDUALS:
+            run = f"two_stage_alpha{alpha}_{residual}"
+            if selected(run):
+                keep(row(fit(f"alpha{alpha}_{residual}", out, run, quick), float(alpha), residual, "two_stage",
+                         "pseudorandom", 1.0))
+            else:
+                key = ("two_stage", alpha, residual)
+                keep(*[r for r in existing if (r["scheme"], r["alpha"], r["residual"]) == key])
+    joint = {residual: f"joint_alpha4_{residual}" for residual in RESIDUALS}
+    if any(selected(run) for run in joint.values()):
+        estimate = fit("alpha4_physics", out, "physics_alpha4", quick).model.physics.physical_parameters()["zeta"]
+    for residual, run in joint.items():
+        if not selected(run):
+            keep(*[r for r in existing if (r["scheme"], r["residual"]) == ("joint", residual)])
+            continue
         for factor in (0.5, 1.0, 2.0):
             start = factor * estimate
-            cli = fit(f"joint_alpha4_{residual}", out, f"joint_alpha4_{residual}_zeta{start:.4f}", quick,
+            cli = fit(f"joint_alpha4_{residual}", out, f"{run}_zeta{start:.4f}", quick,
                       f"--model.init_args.physics.init_args.zeta={start}")
             keep(row(cli, 4.0, residual, "joint", "sine", start))
-    return rows, estimate
+    return rows
 
 
-def markdown(rows: list[dict], estimate: float) -> str:
+def markdown(rows: list[dict]) -> str:
+    starts = sorted(r["zeta_init"] for r in rows if r["scheme"] == "joint")
     lines = [
-        f"Physics-only estimate at α = 4 (stage 1 on the sine): ζ̂ = {estimate:.4f}.",
+        f"Joint runs start ζ at 0.5×, 1× and 2× the physics-only estimate ζ̂ = {starts[len(starts) // 2]:.4f}."
+        if starts else "",
         "",
         "| α | residual | scheme | input | ζ init | ζ̂ | mismatch train % | mismatch validation % |",
         "|---|---|---|---|---|---|---|---|",
@@ -100,15 +122,19 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--quick", action="store_true", help="a couple of epochs on short records (smoke test)")
+    parser.add_argument("--only", nargs="+", metavar="PREFIX",
+                        help="train only the runs whose name starts with PREFIX (e.g. two_stage_alpha10); "
+                             "the other rows are kept from DIR/contrast.json")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    rows, estimate = contrast(out, args.quick)
-    table = markdown(rows, estimate)
+    rows = contrast(out, args.quick, args.only)
+    table = markdown(rows)
     (out / "contrast.md").write_text(table + "\n")
     print(table)
-    print(f"\n{len(rows)} runs in {time.perf_counter() - start:.0f} s; wrote {out / 'contrast.json'} and {out / 'contrast.md'}")
+    elapsed = time.perf_counter() - start
+    print(f"\n{len(rows)} rows, {elapsed:.0f} s; wrote {out / 'contrast.json'} and {out / 'contrast.md'}")
 
 
 if __name__ == "__main__":

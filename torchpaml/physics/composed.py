@@ -12,7 +12,6 @@ and adding an effect whose name is already present raises ``ValueError``.
 
 from __future__ import annotations
 
-import torch
 from torch import nn
 
 from torchpaml.parameters import describe_parameters

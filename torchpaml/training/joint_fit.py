@@ -15,7 +15,9 @@ __all__ = ["JointFit"]
 
 
 class JointFit(HybridSystem):
-    r"""Train the learnable physical parameters and the residual together: $\min_{\theta,\gamma} \|y - \mathcal H^\theta[u] - \mathcal R^\gamma[u]\|^2$.
+    r"""Train the learnable physical parameters and the residual together.
+
+    $\min_{\theta,\gamma} \|y - \mathcal H^\theta[u] - \mathcal R^\gamma[u]\|^2$.
 
     With the Chebyshev-Hammerstein residual the numerators are eliminated by variable projection
     and L-BFGS runs over $\theta$ and the poles; first-order incompatibility then keeps $\hat\theta$
