@@ -78,7 +78,8 @@ def test_tensorboard_holds_the_documented_scalars_and_figures(chebyshev_run):
     assert abs(scalars["residual/identification/delta_zeta"][0]) < 0.01
     figures = {"residual/validation/overlay", "residual/validation/residual", "residual/identification/spectrum"}
     assert figures <= set(events.Tags()["images"])
-    assert yaml.safe_load((run / "hparams.yaml").read_text())["optimizer"] == "lbfgs"
+    hparams = yaml.safe_load((run / "hparams.yaml").read_text())  # the config's model arguments
+    assert hparams["bounds"] == {"zeta": [0.001, 5.0]} and hparams["max_iter"] == 20
 
 
 @pytest.mark.slow
