@@ -4,7 +4,6 @@ import subprocess
 import sys
 
 import pytest
-import torch
 
 from torchpaml import Experiment, simulate
 from torchpaml.physics.registry import build_model

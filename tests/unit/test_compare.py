@@ -1,7 +1,6 @@
 """``compare``: scores per experiment and model, against the metric definitions."""
 
 import pytest
-import torch
 
 from torchpaml import Experiment, Oscillator
 from torchpaml.diagnostics import compare
