@@ -38,6 +38,7 @@ class JointFit(HybridSystem):
         optimizer: Literal["lbfgs", "adam"] | None = None,
         lr: float | None = None,
         max_iter: int = 20,
+        lr_decay: float = 1.0,
         simulation: dict | None = None,
         witness_amplitude: float | None = None,
         witness_omega: float = 1.0,
@@ -45,7 +46,7 @@ class JointFit(HybridSystem):
     ):
         optimizer, lr = default_optimizer(residual, optimizer, lr)
         super().__init__(
-            optimizer=optimizer, lr=lr, max_iter=max_iter, simulation=simulation,
+            optimizer=optimizer, lr=lr, max_iter=max_iter, simulation=simulation, lr_decay=lr_decay,
             witness_amplitude=witness_amplitude, witness_omega=witness_omega, witness_duration=witness_duration,
         )
         self.save_hyperparameters(ignore=["physics", "residual"])

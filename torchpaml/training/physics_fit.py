@@ -32,10 +32,11 @@ class PhysicsFit(HybridSystem):
         optimizer: str = "lbfgs",
         lr: float = 1.0,
         max_iter: int = 20,
+        lr_decay: float = 1.0,
         simulation: dict | None = None,
     ):
         super().__init__(
-            optimizer=optimizer, lr=lr, max_iter=max_iter, simulation=simulation,
+            optimizer=optimizer, lr=lr, max_iter=max_iter, simulation=simulation, lr_decay=lr_decay,
             witness_amplitude=None, witness_omega=1.0, witness_duration=80.0,
         )
         self.save_hyperparameters(ignore=["physics"])

@@ -46,6 +46,9 @@ class HybridSystem(L.LightningModule):
         optimizer: ``"lbfgs"`` (``torch.optim.LBFGS``, ``max_iter`` inner iterations per step,
             strong-Wolfe line search; for a handful of smooth parameters) or ``"adam"`` (networks).
         lr: learning rate (L-BFGS: the initial step, 1 is the natural choice).
+        lr_decay: Adam's learning rate is multiplied by this factor after every epoch
+            (``torch.optim.lr_scheduler.ExponentialLR``; 1 keeps it constant). A decay lets Adam settle
+            instead of spiking late in training; being per epoch, it resumes exactly from a checkpoint.
         simulation: options for :func:`~torchpaml.simulate` (``method``, ``rtol``, ``atol``...).
         witness_amplitude, witness_omega, witness_duration: the witness input
             $\alpha\cos\omega t$ of the certificates; the amplitude defaults to the Chebyshev
@@ -61,6 +64,7 @@ class HybridSystem(L.LightningModule):
         lr: float,
         max_iter: int,
         simulation: dict | None,
+        lr_decay: float,
         witness_amplitude: float | None,
         witness_omega: float,
         witness_duration: float,
@@ -68,7 +72,9 @@ class HybridSystem(L.LightningModule):
         super().__init__()
         if optimizer not in ("lbfgs", "adam"):
             raise ValueError(f"optimizer must be 'lbfgs' or 'adam', got {optimizer!r}")
-        self.optimizer_name, self.lr, self.max_iter = optimizer, float(lr), int(max_iter)
+        if not 0 < lr_decay <= 1:
+            raise ValueError(f"lr_decay must lie in (0, 1], got {lr_decay}")
+        self.optimizer_name, self.lr, self.max_iter, self.lr_decay = optimizer, float(lr), int(max_iter), lr_decay
         self.simulation = dict(simulation or {})
         self.witness = (witness_amplitude, float(witness_omega), float(witness_duration))
         self.physics: nn.Module
@@ -158,7 +164,8 @@ class HybridSystem(L.LightningModule):
                 params, lr=self.lr, max_iter=self.max_iter, line_search_fn="strong_wolfe",
                 tolerance_grad=1e-12, tolerance_change=1e-14,
             )
-        return torch.optim.Adam(params, lr=self.lr)
+        adam = torch.optim.Adam(params, lr=self.lr)
+        return {"optimizer": adam, "lr_scheduler": torch.optim.lr_scheduler.ExponentialLR(adam, self.lr_decay)}
 
     # -- evaluation --------------------------------------------------------------------------
     def evaluate(self, batch: dict, split: str) -> dict[str, float]:
