@@ -19,6 +19,7 @@ from torchpaml.physics.effects import _tanh_ratio
 from torchpaml.signals import pseudorandom, pseudorandom_knots, sine
 
 TOL = dict(rtol=1e-7, atol=1e-9)
+TIGHT = dict(rtol=1e-9, atol=1e-11)
 
 
 def test_the_library_has_every_effect_the_issue_names():
@@ -41,9 +42,11 @@ def test_every_effect_at_zero_strength_leaves_the_physics_unchanged(effect, grid
 def test_pendulum_restoring_at_full_strength_is_the_pendulum(grid):
     u = sine(grid, 2.0, 1.0)
     with torch.no_grad():
-        composed = simulate(Oscillator(zeta=0.5, omega0=2.0) + PendulumRestoring(lam=1.0), grid, u, **TOL)
-        pendulum = simulate(Pendulum(zeta=0.5, omega0=2.0), grid, u, **TOL)
-    assert torch.allclose(torch.sin(composed), pendulum, rtol=0, atol=1e-6)  # Pendulum's output is sin x
+        composed = simulate(Oscillator(zeta=0.5, omega0=2.0) + PendulumRestoring(lam=1.0), grid, u, **TIGHT)
+        pendulum = simulate(Pendulum(zeta=0.5, omega0=2.0), grid, u, **TIGHT)
+    # Pendulum's output is sin x. Two adaptive solves of one ODE, through an input with a kink at
+    # every sample, take different steps; at rtol 1e-9 they agree to about 2e-7.
+    assert torch.allclose(torch.sin(composed), pendulum, rtol=0, atol=1e-6)
 
 
 def test_composed_acceleration_is_the_sum_of_the_terms():
