@@ -3,5 +3,17 @@
 from torchpaml.diagnostics.compare import Comparison, compare
 from torchpaml.diagnostics.harmonics import HarmonicFingerprint, harmonic_fingerprint
 from torchpaml.diagnostics.residuals import ResidualAnalysis, residual_analysis
+from torchpaml.diagnostics.validity import AmplitudeBins, ValidityMap, error_by_amplitude, validity_map
 
-__all__ = ["Comparison", "compare", "HarmonicFingerprint", "harmonic_fingerprint", "ResidualAnalysis", "residual_analysis"]
+__all__ = [
+    "AmplitudeBins",
+    "Comparison",
+    "HarmonicFingerprint",
+    "ResidualAnalysis",
+    "ValidityMap",
+    "compare",
+    "error_by_amplitude",
+    "harmonic_fingerprint",
+    "residual_analysis",
+    "validity_map",
+]
