@@ -46,7 +46,7 @@ def test_every_config_trains_end_to_end_on_short_records(config, tmp_path):
     run = run_dir(tmp_path)
     assert (run / "config.yaml").exists() and (run / "checkpoints" / "last.ckpt").exists()
     checkpoint = torch.load(run / "checkpoints" / "last.ckpt", weights_only=False)
-    assert checkpoint["physical_parameters"] == cli.model.physics.physical_parameters()
+    assert checkpoint["physical_parameters"] == pytest.approx(cli.model.physics.physical_parameters(), rel=1e-12)
     assert cli.trainer.current_epoch == 2
     assert 0 < cli.model.record_mismatch(cli.datamodule.records("validation")) < 10
 
@@ -76,6 +76,8 @@ def test_tensorboard_holds_the_documented_scalars_and_figures(chebyshev_run):
     assert scalars["residual/validation/mismatch_pct"][-1] < scalars["residual/validation/physics_mismatch_pct"][-1]
     assert scalars["residual/witness/certificate_zeroth"][0] < 1e-3  # the Chebyshev residual: orthogonal
     assert abs(scalars["residual/identification/delta_zeta"][0]) < 0.01
+    assert scalars["residual/train/inadequate"] == [0.0]  # alpha = 4: the physics is adequate
+    assert "residual/verdict/text_summary" in events.Tags()["tensors"]
     figures = {"residual/validation/overlay", "residual/validation/residual", "residual/identification/spectrum"}
     assert figures <= set(events.Tags()["images"])
     hparams = yaml.safe_load((run / "hparams.yaml").read_text())  # the config's model arguments

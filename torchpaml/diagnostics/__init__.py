@@ -1,16 +1,19 @@
 """Diagnostics: how the physics compares with the measurements, and where it fails."""
 
+from torchpaml.diagnostics.adequacy import Adequacy, assess_adequacy
 from torchpaml.diagnostics.compare import Comparison, compare
 from torchpaml.diagnostics.harmonics import HarmonicFingerprint, harmonic_fingerprint
 from torchpaml.diagnostics.residuals import ResidualAnalysis, residual_analysis
 from torchpaml.diagnostics.validity import AmplitudeBins, ValidityMap, error_by_amplitude, validity_map
 
 __all__ = [
+    "Adequacy",
     "AmplitudeBins",
     "Comparison",
     "HarmonicFingerprint",
     "ResidualAnalysis",
     "ValidityMap",
+    "assess_adequacy",
     "compare",
     "error_by_amplitude",
     "harmonic_fingerprint",

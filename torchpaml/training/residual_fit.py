@@ -139,4 +139,26 @@ class ResidualFit(HybridSystem):
         shift = reestimate_shift(refit, y_model - y_physics, t, u, y, **self._stage1_options())
         scalars.update({f"{self.stage}/identification/delta_{k}": v for k, v in shift.items()})
         scalars[f"{self.stage}/identification/physics_mismatch_pct"] = 100 * mismatch(y, y_physics)
+        if self.uses_projection:
+            verdict = self.adequacy()
+            scalars[f"{self.stage}/train/inadequate"] = float(verdict.inadequate)
+            experiment = getattr(self.logger, "experiment", None)
+            if hasattr(experiment, "add_text"):
+                experiment.add_text(f"{self.stage}/verdict", verdict.message, global_step=self.global_step)
         return scalars
+
+    def adequacy(self):
+        """The inadequacy alarm (:func:`~torchpaml.diagnostics.assess_adequacy`) on the whole training and
+        validation records: physics alone against physics + the orthogonal residual."""
+        from torchpaml.diagnostics.adequacy import assess_adequacy
+
+        data, mismatches = self.trainer.datamodule, {}
+        for split in ("train", "validation"):
+            records = data.records(split)
+            if records:
+                residual, self.residual = self.residual, None
+                physics = self.record_mismatch(records)
+                self.residual = residual
+                mismatches[split] = (physics, self.record_mismatch(records))
+        validation = mismatches.get("validation", (None, None))
+        return assess_adequacy(*mismatches["train"], *validation)

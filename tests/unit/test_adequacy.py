@@ -1,0 +1,19 @@
+"""The inadequacy alarm on the paper's two regimes (the contrast experiment's measured mismatches)."""
+
+from torchpaml.diagnostics import assess_adequacy
+
+
+def test_alpha4_is_adequate_and_alpha10_raises_the_alarm():
+    # results/contrast, two-stage Chebyshev: alpha 4 physics 12.12 % -> hybrid 2.01 % (train), 10.71 -> 6.22
+    adequate = assess_adequacy(0.1212, 0.0201, 0.1071, 0.0622)
+    assert not adequate.inadequate and adequate.message.startswith("physics adequate")
+    # alpha 10: 90.0 % -> 54.2 % on training (closes 40 %), and 126 % on validation against the physics' 102 %
+    alarm = assess_adequacy(0.8996, 0.5419, 1.0190, 1.2637)
+    assert alarm.inadequate and "PHYSICS INADEQUATE" in alarm.message
+    assert "closes only 40 %" in alarm.message and "no better than the physics" in alarm.message
+
+
+def test_either_condition_alone_raises_it():
+    assert assess_adequacy(0.5, 0.3).inadequate  # closes only 40 % of the training error
+    assert assess_adequacy(0.5, 0.1, 0.5, 0.6).inadequate  # fits training, worse on validation
+    assert not assess_adequacy(0.5, 0.1, 0.5, 0.3).inadequate
