@@ -83,16 +83,20 @@ class AbstractPhysics(nn.Module):
         return compose(self, effect)
 
     # -- parameters --------------------------------------------------------------------------
+    def _rows(self) -> list[dict]:
+        """:func:`~torchpaml.parameters.describe_parameters` rows under the names users read and assign."""
+        return describe_parameters(self)
+
     def physical_parameters(self) -> dict[str, float]:
         """Current values in physical units, ``{name: value}``."""
-        return {r["name"]: r["value"] for r in describe_parameters(self)}
+        return {r["name"]: r["value"] for r in self._rows()}
 
     def learnable_names(self) -> list[str]:
-        return [r["name"] for r in describe_parameters(self) if r["learnable"]]
+        return [r["name"] for r in self._rows() if r["learnable"]]
 
     def set_learnable(self, *names: str, learn: bool = True) -> AbstractPhysics:
         """Make the named parameters learnable (or fixed with ``learn=False``); returns ``self``."""
-        known = {r["name"] for r in describe_parameters(self)}
+        known = set(self.physical_parameters())
         for name in names:
             if name not in known:
                 raise ValueError(f"{self.display_name} has no physical parameter {name!r}; known: {sorted(known)}")
@@ -139,7 +143,7 @@ class AbstractPhysics(nn.Module):
 
     def describe(self) -> str:
         """A readable table of the physical parameters (value, unit, constraint, fixed/learned)."""
-        return f"{self.display_name}\n{format_table(describe_parameters(self))}"
+        return f"{self.display_name}\n{format_table(self._rows())}"
 
     @property
     def display_name(self) -> str:

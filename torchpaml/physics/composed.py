@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from torch import nn
 
-from torchpaml.parameters import describe_parameters
+from torchpaml.parameters import describe_parameters, format_table
 from torchpaml.physics.base import SecondOrderPhysics
 from torchpaml.physics.effects import AbstractEffect
 
@@ -73,15 +73,7 @@ class ComposedModel(SecondOrderPhysics):
             rows += describe_parameters(effect, prefix=f"{name}.")
         return rows
 
-    def physical_parameters(self) -> dict[str, float]:
-        return {r["name"]: r["value"] for r in self._rows()}
-
-    def learnable_names(self) -> list[str]:
-        return [r["name"] for r in self._rows() if r["learnable"]]
-
     def describe(self) -> str:
-        from torchpaml.parameters import format_table
-
         return f"{self.display_name}: {self.equation()}\n{format_table(self._rows())}"
 
     def _owner(self, name: str) -> tuple[nn.Module, str]:
@@ -89,15 +81,6 @@ class ComposedModel(SecondOrderPhysics):
         if leaf and head in self.effects:
             return self.effects[head], leaf
         return self.base, name
-
-    def set_learnable(self, *names: str, learn: bool = True) -> ComposedModel:
-        known = set(self.physical_parameters())
-        for name in names:
-            if name not in known:
-                raise ValueError(f"{self.display_name} has no physical parameter {name!r}; known: {sorted(known)}")
-            owner, leaf = self._owner(name)
-            getattr(owner.parametrizations, leaf).original.requires_grad_(learn)
-        return self
 
     def equation(self) -> str:
         """The model in words: the base's class and each effect's term."""

@@ -7,7 +7,6 @@ from typing import Literal
 from torch import nn
 
 from torchpaml.physics.base import AbstractPhysics
-from torchpaml.residual.hybrid import Hybrid
 from torchpaml.training.residual_fit import default_optimizer
 from torchpaml.training.system import HybridSystem
 
@@ -50,14 +49,7 @@ class JointFit(HybridSystem):
             witness_amplitude=witness_amplitude, witness_omega=witness_omega, witness_duration=witness_duration,
         )
         self.save_hyperparameters(ignore=["physics", "residual"])
-        Hybrid(physics, residual)  # validates the pairing
-        for name, (lower, upper) in (bounds or {}).items():
-            physics.bound(name, lower, upper)
-        self.physics, self.residual = physics, residual
-        self._identified = physics.learnable_names()
-        if self.uses_projection:
-            residual.numerator.requires_grad_(False)
-            residual.direct.requires_grad_(False)
+        self.attach(physics, residual, bounds)
 
     def trainable(self) -> list[nn.Parameter]:
         physics = [p for p in self.physics.parameters() if p.requires_grad]

@@ -40,10 +40,7 @@ class PhysicsFit(HybridSystem):
             witness_amplitude=None, witness_omega=1.0, witness_duration=80.0,
         )
         self.save_hyperparameters(ignore=["physics"])
-        for name, (lower, upper) in (bounds or {}).items():
-            physics.bound(name, lower, upper)
-        self.physics = physics
-        self._identified = physics.learnable_names()
+        self.attach(physics, None, bounds)
         if not self._identified:
             raise ValueError(f"{physics.display_name} has no learnable parameter; list the ones to fit in learn=[...]")
 

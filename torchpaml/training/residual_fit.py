@@ -12,7 +12,7 @@ from torchpaml.errors import DataError
 from torchpaml.fit import fit_physics, reestimate_shift
 from torchpaml.metrics import mismatch
 from torchpaml.physics.base import AbstractPhysics
-from torchpaml.residual.hybrid import Hybrid
+from torchpaml.residual.chebyshev_hammerstein import ChebyshevHammerstein
 from torchpaml.training.system import HybridSystem
 
 __all__ = ["ResidualFit", "default_optimizer"]
@@ -20,8 +20,6 @@ __all__ = ["ResidualFit", "default_optimizer"]
 
 def default_optimizer(residual: nn.Module, optimizer: str | None, lr: float | None) -> tuple[str, float]:
     """L-BFGS (lr 1) for the Chebyshev residual's few pole parameters, Adam (lr 3e-3) for networks."""
-    from torchpaml.residual.chebyshev_hammerstein import ChebyshevHammerstein
-
     chosen = optimizer or ("lbfgs" if isinstance(residual, ChebyshevHammerstein) else "adam")
     return chosen, lr if lr is not None else (1.0 if chosen == "lbfgs" else 3e-3)
 
@@ -72,17 +70,10 @@ class ResidualFit(HybridSystem):
             witness_amplitude=witness_amplitude, witness_omega=witness_omega, witness_duration=witness_duration,
         )
         self.save_hyperparameters(ignore=["physics", "residual"])
-        Hybrid(physics, residual)  # validates the pairing
         self.bounds = {name: tuple(b) for name, b in (bounds or {}).items()}
-        for name, (lower, upper) in self.bounds.items():
-            physics.bound(name, lower, upper)
-        self.physics, self.residual = physics, residual
-        self._identified = physics.learnable_names()
+        self.attach(physics, residual, self.bounds)
         self.physics_checkpoint = physics_checkpoint
         physics.requires_grad_(False)
-        if self.uses_projection:
-            residual.numerator.requires_grad_(False)
-            residual.direct.requires_grad_(False)
         self.register_buffer("physics_ready", torch.tensor(False))
 
     def trainable(self) -> list[nn.Parameter]:
@@ -152,13 +143,8 @@ class ResidualFit(HybridSystem):
         validation records: physics alone against physics + the orthogonal residual."""
         from torchpaml.diagnostics.adequacy import assess_adequacy
 
-        data, mismatches = self.trainer.datamodule, {}
-        for split in ("train", "validation"):
-            records = data.records(split)
-            if records:
-                residual, self.residual = self.residual, None
-                physics = self.record_mismatch(records)
-                self.residual = residual
-                mismatches[split] = (physics, self.record_mismatch(records))
+        data = self.trainer.datamodule
+        mismatches = {split: self.record_mismatches(data.records(split)) for split in ("train", "validation")
+                      if data.records(split)}
         validation = mismatches.get("validation", (None, None))
         return assess_adequacy(*mismatches["train"], *validation)

@@ -81,6 +81,19 @@ class HybridSystem(L.LightningModule):
         self.residual: nn.Module | None = None
 
     # -- the model ---------------------------------------------------------------------------
+    def attach(self, physics: nn.Module, residual: nn.Module | None, bounds: dict | None) -> None:
+        """Install the model: bound the named parameters, record the identified ones, and take the
+        Chebyshev numerators out of the optimiser (variable projection sets them)."""
+        if residual is not None:
+            Hybrid(physics, residual)  # validates the pairing
+        for name, (lower, upper) in (bounds or {}).items():
+            physics.bound(name, lower, upper)
+        self.physics, self.residual = physics, residual
+        self._identified = physics.learnable_names()
+        if self.uses_projection:
+            residual.numerator.requires_grad_(False)
+            residual.direct.requires_grad_(False)
+
     @property
     def identified_names(self) -> list[str]:
         """The physical parameters this workflow identifies (learned in stage 1 or jointly)."""
@@ -185,19 +198,24 @@ class HybridSystem(L.LightningModule):
     def test_step(self, batch: dict, batch_idx: int) -> None:
         self.evaluate(batch, "test")
 
-    def record_mismatch(self, records: list) -> float:
-        r"""Mismatch (fraction) of the stage's model over whole :class:`~torchpaml.data.Experiment` records.
+    def record_mismatches(self, records: list) -> tuple[float, float]:
+        r"""Mismatch (fraction) of the physics alone and of the stage's model over whole records.
 
-        $\sqrt{\sum_i \|y_i - \hat y_i\|^2 / \sum_i \|y_i\|^2}$, each record simulated from rest in full.
+        $\sqrt{\sum_i \|y_i - \hat y_i\|^2 / \sum_i \|y_i\|^2}$ over :class:`~torchpaml.data.Experiment`
+        records, each simulated from rest in full.
         """
-        error, energy = 0.0, 0.0
+        errors, energy = [0.0, 0.0], 0.0
         with torch.no_grad():
             for record in records:
                 t, u, y = record.batch()
-                _, y_model = self.outputs(t - t[0], u)
-                error += float(torch.sum((y - y_model) ** 2))
+                for i, y_hat in enumerate(self.outputs(t - t[0], u)):
+                    errors[i] += float(torch.sum((y - y_hat) ** 2))
                 energy += float(torch.sum(y**2))
-        return (error / energy) ** 0.5
+        return (errors[0] / energy) ** 0.5, (errors[1] / energy) ** 0.5
+
+    def record_mismatch(self, records: list) -> float:
+        """Mismatch (fraction) of the stage's model over whole records (:meth:`record_mismatches`)."""
+        return self.record_mismatches(records)[1]
 
     # -- reports: figures and certificates -----------------------------------------------------
     def on_train_end(self) -> None:
