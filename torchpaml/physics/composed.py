@@ -61,10 +61,10 @@ class ComposedModel(SecondOrderPhysics):
         return a
 
     def output(self, x, u):
-        y = self.base.output(x, u)
+        y = self.base.output(x, u).movedim(0, -1)  # batch last: parameters batched as (rows,) broadcast over it
         for effect in self.effects.values():
             y = effect.output_map(y)
-        return y
+        return y.movedim(-1, 0)
 
     # -- names: the base's parameters unprefixed, the effects' under their names ---------------
     def _rows(self) -> list[dict]:

@@ -25,7 +25,9 @@ saturation) rather than $u_{\max} = \infty$; the physical level $1/s$ is reporte
 
 Writing your own: subclass :class:`AbstractEffect`, give it a ``name`` and parameters through
 :func:`~torchpaml.parameters.register_parameters`, and override any of :meth:`AbstractEffect.force`,
-:meth:`AbstractEffect.input_map`, :meth:`AbstractEffect.output_map`.
+:meth:`AbstractEffect.input_map`, :meth:`AbstractEffect.output_map`. The first declared parameter is the effect's *strength*
+(:attr:`AbstractEffect.strength`): at strength 0 the effect must leave the model unchanged, and
+parameters may arrive batched with shape (rows,), so combine them with signals elementwise.
 """
 
 from __future__ import annotations
@@ -68,6 +70,11 @@ class AbstractEffect(nn.Module):
 
     name: str = ""
     equation: str = ""
+
+    @property
+    def strength(self) -> str:
+        """The strength parameter: the first declared one. At strength 0 the effect must leave the model unchanged."""
+        return next(iter(self._physical))
 
     def force(self, physics: nn.Module, x: torch.Tensor, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor | None:
         return None

@@ -39,9 +39,8 @@ def build_model(physics: str, parameters: dict[str, float] | None = None, effect
         if name not in EFFECTS:
             raise ValueError(f"unknown effect {name!r}; choose from {sorted(EFFECTS)}")
         effect = EFFECTS[name]()
-        first = next(iter(effect._physical))
         model = model + effect
-        model.assign(**{f"{name}.{first}": strength})
+        model.assign(**{f"{name}.{effect.strength}": strength})
     known = set(model.physical_parameters())
     unknown = sorted(set(parameters or {}) - known)
     if unknown:

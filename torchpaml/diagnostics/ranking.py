@@ -1,0 +1,285 @@
+r"""Which effect is missing: rank candidate effects by a first-order score, then by refitted validation error.
+
+1. **Baseline.** The physics' learnable parameters are fitted to the training records
+   (:func:`~torchpaml.fit.least_squares.fit_least_squares`), leaving the residual
+   $r = (y - \hat y)/\|y\|$ and the sensitivities $J = \partial r/\partial\rho$ of the physics' own
+   parameters.
+2. **First-order score** (the tangent-space idea of Kuang & Lin). Each candidate $c$ is added at
+   strength $k$; at $k = 0$ the model is unchanged. Its output direction is the secant
+   $d_c = [\hat y(\delta) - \hat y(0)]/\|y\|$ for a small probe strength $\delta$. What the physics'
+   own parameters already explain is removed, $\tilde d_c = (I - J J^+)\, d_c$, and the score is the
+   share of the residual's energy that a step along $\tilde d_c$ removes:
+
+   $$ s_c = \frac{(\tilde d_c^\top r)^2}{\|\tilde d_c\|^2\,\|r\|^2} \in [0, 1]. $$
+
+   Some effects enter at second order: $\tanh(s u)/s = u - s^2u^3/3 + \dots$ is even in $s$.
+   The order $q$ is read off $\|\hat y(2\delta) - \hat y(0)\| / \|\hat y(\delta) - \hat y(0)\| \approx 2^q$;
+   for $q = 2$ only a positive coefficient $\beta = \tilde d_c^\top r / \|\tilde d_c\|^2$ is reachable
+   ($\beta = (k/\delta)^2$), so $s_c = 0$ when $\beta \le 0$. The first-order strength
+   $k_1 = \delta\,\beta^{1/q}$ starts the refit.
+3. **Refit.** The ``shortlist`` best-scored candidates are refitted with the physics
+   (all parameters learnable as in the physics, plus the effect's) on the training records.
+4. **Rank** by the information criterion on the validation records,
+   $\mathrm{BIC} = n \ln(\mathrm{SSE}/n) + k \ln n$ (or $\mathrm{AIC} = n\ln(\mathrm{SSE}/n) + 2k$), $k$ the
+   number of fitted parameters. A candidate is *recommended* when it lowers the criterion below the
+   baseline's by more than ``threshold`` (10: very strong evidence on the Kass-Raftery scale).
+   Candidates outside the shortlist follow, by score, without a refit.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import torch
+from matplotlib.figure import Figure
+
+from torchpaml.data import Experiment
+from torchpaml.errors import SimulationError
+from torchpaml.fit.least_squares import (
+    LeastSquaresFit,
+    fit_least_squares,
+    raw_parameters,
+    simulate_record,
+    simulate_rows,
+)
+from torchpaml.physics.effects import AbstractEffect
+
+__all__ = ["EffectEvidence", "ModelScore", "Ranking", "rank_missing_effects", "score_model"]
+
+
+@dataclass
+class ModelScore:
+    """A fitted model's errors: mismatch (fraction) on training and validation, and the criterion on validation."""
+
+    name: str
+    equation: str
+    parameters: dict[str, float]
+    nrmse_train: float
+    nrmse_validation: float
+    criterion: float
+    model: torch.nn.Module = field(repr=False)
+
+
+@dataclass
+class EffectEvidence:
+    """One candidate's evidence: its first-order score and, if refitted, its refitted model's errors.
+
+    ``improvement`` is the baseline's criterion minus the candidate's (positive: better).
+    """
+
+    effect: str
+    equation: str
+    score: float
+    order: int
+    first_order_strength: float
+    refit: ModelScore | None = None
+    improvement: float | None = None
+
+    def to_dict(self) -> dict:
+        refit = self.refit
+        return {
+            "effect": self.effect, "equation": self.equation, "score": self.score, "order": self.order,
+            "first_order_strength": self.first_order_strength, "refitted": refit is not None,
+            "nrmse_train": None if refit is None else refit.nrmse_train,
+            "nrmse_validation": None if refit is None else refit.nrmse_validation,
+            "criterion": None if refit is None else refit.criterion,
+            "improvement": self.improvement, "parameters": {} if refit is None else refit.parameters,
+        }
+
+
+@dataclass
+class Ranking:
+    """The baseline and the candidates, best first (module docstring)."""
+
+    baseline: ModelScore
+    entries: list[EffectEvidence]
+    criterion: str
+    threshold: float
+
+    @property
+    def recommended(self) -> EffectEvidence | None:
+        """The best candidate if it beats the baseline by more than ``threshold``, else ``None``."""
+        best = self.entries[0] if self.entries else None
+        if best is not None and best.improvement is not None and best.improvement > self.threshold:
+            return best
+        return None
+
+    def table(self) -> str:
+        """A markdown table: score, validation mismatch, criterion improvement and fitted parameters."""
+        head = (f"baseline {self.baseline.name}: train {100 * self.baseline.nrmse_train:.2f} %, "
+                f"validation {100 * self.baseline.nrmse_validation:.2f} %")
+        lines = [head, "",
+                 f"| rank | effect | score | validation % | Δ{self.criterion.upper()} | parameters |",
+                 "|---|---|---|---|---|---|"]
+        for i, e in enumerate(self.entries, 1):
+            refit = e.refit
+            validation = "not refitted" if refit is None else f"{100 * refit.nrmse_validation:.2f}"
+            gain = "" if e.improvement is None else f"{e.improvement:.1f}"
+            params = "" if refit is None else ", ".join(f"{k}={v:.4g}" for k, v in refit.parameters.items())
+            lines.append(f"| {i} | {e.effect} | {e.score:.3f} | {validation} | {gain} | {params} |")
+        return "\n".join(lines)
+
+    def figure(self) -> Figure:
+        """Bars: each candidate's first-order score, and the validation mismatch of the refitted ones."""
+        fig = Figure(figsize=(9, 4), layout="constrained")
+        left, right = fig.subplots(1, 2)
+        names = [e.effect for e in self.entries]
+        left.barh(names[::-1], [e.score for e in self.entries][::-1], color="tab:blue")
+        left.set_xlabel("first-order score (share of residual energy)")
+        refitted = [e for e in self.entries if e.refit is not None]
+        right.barh([e.effect for e in refitted][::-1], [100 * e.refit.nrmse_validation for e in refitted][::-1],
+                   color="tab:orange")
+        right.axvline(100 * self.baseline.nrmse_validation, color="k", linestyle="--", label="baseline")
+        right.set_xlabel("validation mismatch after refit (%)")
+        right.legend()
+        fig.suptitle(f"missing-effect ranking on {self.baseline.name}")
+        return fig
+
+
+def _records(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]:
+    return [experiments] if isinstance(experiments, Experiment) else list(experiments)
+
+
+def score_model(
+    physics,
+    fit: LeastSquaresFit,
+    validation: Sequence[Experiment],
+    criterion: Literal["bic", "aic"] = "bic",
+) -> ModelScore:
+    """The fitted ``physics``' mismatch on training (from ``fit``) and validation, and its criterion on validation."""
+    sse, n, norm = 0.0, 0, 0.0
+    for record in validation:
+        y = record.y[None]
+        sse += float(torch.sum((y - simulate_record(physics, record)) ** 2))
+        norm += float(torch.sum(y**2))
+        n += y.numel()
+    k = len(fit.parameters)
+    penalty = k * torch.log(torch.tensor(float(n))).item() if criterion == "bic" else 2.0 * k
+    value = n * torch.log(torch.tensor(sse / n)).item() + penalty
+    equation = physics.equation() if hasattr(physics, "equation") else physics.display_name
+    return ModelScore(physics.display_name, equation, physics.physical_parameters(), fit.mismatch,
+                      (sse / norm) ** 0.5, value, physics)
+
+
+def _raw(extended, name: str, value: float) -> torch.Tensor | None:
+    """The raw (unconstrained) value of parameter ``name`` at ``value``, shape (1,); ``None`` if its constraint forbids it."""
+    try:
+        extended.assign(**{name: value})
+    except ValueError:
+        return None
+    return next(iter(raw_parameters(extended, [name]).values())).detach().clone().reshape(1)
+
+
+def _first_order(extended, name: str, fit: LeastSquaresFit, train: list[Experiment], probe: float,
+                 reference: torch.Tensor) -> tuple[float, int, float]:
+    """(score, order q, first-order strength) of the effect whose strength parameter is ``name`` (module docstring).
+
+    The strength is probed at 0, δ, 2δ and -δ. An effect that moves the output the same way at ±δ
+    (second order, or an absolute value such as the dead zone's |d|) can only add a positive multiple
+    of its direction, so a negative coefficient scores 0.
+    """
+    rows = [_raw(extended, name, value) for value in (0.0, probe, 2 * probe, -probe)]
+    if rows[0] is None:
+        raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0; "
+                         "give it a constraint that allows 0 (e.g. Real())")
+    extended.assign(**{name: 0.0})
+    rows = [row if row is not None else rows[0] for row in rows]
+    scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
+    with torch.no_grad():
+        outputs = torch.cat([simulate_rows(extended, [name], torch.stack(rows), r.t - r.t[0], r.u[None]).flatten(1)
+                             for r in train], dim=1) / scale
+    off = float(torch.linalg.vector_norm(outputs[0] - reference) / torch.linalg.vector_norm(reference))
+    if off > 1e-3:
+        raise ValueError(
+            f"effect {name.partition('.')[0]!r} changes the model at zero strength (by {100 * off:.2g} % of the "
+            f"output); its strength parameter {name!r} must switch the effect off at 0. Rewrite the effect so that "
+            "its first declared parameter scales it"
+        )
+    d1, d2, d_minus = (outputs[i] - outputs[0] for i in (1, 2, 3))
+    size = float(torch.linalg.vector_norm(d1))
+    if size == 0.0:
+        return 0.0, 1, 0.0  # the effect does not act on this record
+    order = 2 if float(torch.linalg.vector_norm(d2)) / size > 2**1.5 else 1
+    one_sided = float(torch.linalg.vector_norm(d_minus - d1)) < 0.5 * size
+    J = fit.jacobian
+    projected = d1 - J @ torch.linalg.lstsq(J, d1[:, None]).solution[:, 0]
+    energy = float(projected @ projected)
+    if energy <= 1e-20 * size**2:
+        return 0.0, order, 0.0  # the physics' own parameters already make this move
+    r = fit.residual
+    beta = float(projected @ r) / energy
+    if one_sided and beta <= 0:
+        return 0.0, order, probe
+    score = float(projected @ r) ** 2 / (energy * float(r @ r))
+    return score, order, probe * (beta if order == 1 else beta ** (1 / order))
+
+
+def _refit(extended, name: str, start: float, train: list[Experiment], max_nfev: int) -> LeastSquaresFit:
+    """Fit ``extended`` from the first-order strength, halving it while the simulation blows up at the start."""
+    for _ in range(20):
+        extended.assign(**{name: start})
+        try:
+            return fit_least_squares(extended, train, max_nfev=max_nfev)
+        except SimulationError:
+            start /= 2
+    extended.assign(**{name: 0.0})
+    return fit_least_squares(extended, train, max_nfev=max_nfev)
+
+
+def rank_missing_effects(
+    physics,
+    candidates: Sequence[AbstractEffect],
+    train: Experiment | Sequence[Experiment],
+    validation: Experiment | Sequence[Experiment],
+    *,
+    shortlist: int = 3,
+    criterion: Literal["bic", "aic"] = "bic",
+    threshold: float = 10.0,
+    probe: float = 1e-4,
+    max_nfev: int = 40,
+) -> Ranking:
+    """Rank ``candidates`` as the effect missing from ``physics`` (module docstring).
+
+    Args:
+        physics: the physics to diagnose (not modified: a copy is fitted). Its learnable parameters
+            are fitted; ``physics + effect`` must work for every candidate.
+        candidates: effects at zero strength, e.g. :func:`~torchpaml.physics.default_effects`.
+        train, validation: the records to fit on and to rank on.
+        shortlist: how many of the best-scored candidates are refitted (``len(candidates)``: all).
+        criterion: ``"bic"`` or ``"aic"``, on the validation records.
+        threshold: criterion improvement over the baseline needed to recommend an effect.
+        probe: strength $\\delta$ of the first-order secant.
+        max_nfev: iteration limit of each refit.
+    """
+    train, validation = _records(train), _records(validation)
+    names = [c.name for c in candidates]
+    if len(set(names)) != len(names):
+        raise ValueError(f"candidate effects must have distinct names, got {names}")
+    present = set(getattr(physics, "effects", {}))
+    if present & set(names):
+        raise ValueError(f"candidate(s) {sorted(present & set(names))} are already in {physics.display_name}; "
+                         "drop them from the candidates")
+    base = copy.deepcopy(physics)
+    fit = fit_least_squares(base, train, max_nfev=max_nfev)
+    baseline = score_model(base, fit, validation, criterion)
+    scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
+    reference = torch.cat([simulate_record(base, r).flatten(1) for r in train], dim=1)[0] / scale
+    entries, extended_models = [], {}
+    for candidate in candidates:
+        extended = copy.deepcopy(base) + copy.deepcopy(candidate)
+        strength = f"{candidate.name}.{candidate.strength}"
+        score, order, start = _first_order(extended, strength, fit, train, probe, reference)
+        entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start))
+        extended_models[candidate.name] = (extended, strength)
+    by_score = sorted(entries, key=lambda e: -e.score)
+    for entry in by_score[:shortlist]:
+        extended, strength = extended_models[entry.effect]
+        refit = _refit(extended, strength, entry.first_order_strength, train, max_nfev)
+        entry.refit = score_model(extended, refit, validation, criterion)
+        entry.improvement = baseline.criterion - entry.refit.criterion
+    refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
+    rest = [e for e in by_score if e.refit is None]
+    return Ranking(baseline, refitted + rest, criterion, threshold)
