@@ -1,0 +1,211 @@
+r"""The whole diagnosis: compare, where it fails, which effect is missing, add it, the residual on top.
+
+:func:`diagnose` runs, on training and validation records:
+
+1. the **model ladder** (:func:`~torchpaml.diagnostics.model_ladder`): the physics fitted, the
+   candidates ranked (:func:`~torchpaml.diagnostics.rank_missing_effects`), the best added while it
+   beats the current model's criterion by more than the threshold;
+2. **where the fitted physics fails** on the validation records: residual whiteness and input
+   cross-correlation (:func:`~torchpaml.diagnostics.residual_analysis`), and the mismatch binned by
+   |u| and by |y| (:func:`~torchpaml.diagnostics.error_by_amplitude`);
+3. the **Chebyshev-Hammerstein residual** fitted on top of the first and of the last rung, with the
+   inadequacy alarm (:func:`~torchpaml.diagnostics.assess_adequacy`): on wrong physics it cannot
+   close the gap and says so; on physics whose training residual is white (at most
+   :data:`WHITE_SHARE` of the correlation lags outside the 99 % bounds) it says that there is
+   nothing left to add.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import torch
+from matplotlib.figure import Figure
+
+from torchpaml.data import Experiment
+from torchpaml.diagnostics.adequacy import Adequacy, assess_adequacy
+from torchpaml.diagnostics.ladder import Ladder, model_ladder
+from torchpaml.diagnostics.ranking import ModelScore, Ranking
+from torchpaml.diagnostics.residuals import ResidualAnalysis, residual_analysis
+from torchpaml.diagnostics.validity import AmplitudeBins, error_by_amplitude
+from torchpaml.errors import DataError
+from torchpaml.fit.least_squares import simulate_record
+from torchpaml.fit.residual_fit import fit_chebyshev_hammerstein
+from torchpaml.metrics import mismatch
+from torchpaml.physics.effects import AbstractEffect
+from torchpaml.plots import overlay_figure
+from torchpaml.residual.chebyshev_hammerstein import ChebyshevHammerstein
+
+__all__ = ["Diagnosis", "HybridScore", "diagnose"]
+
+#: A residual counts as white when at most this share of its correlation lags leave the 99 % bounds
+#: (1 % would by chance; 5 % leaves room for a few, and a structured residual leaves most of them).
+WHITE_SHARE = 0.05
+
+
+@dataclass
+class HybridScore:
+    """A physics model with the Chebyshev residual on top: mismatches (fractions) and the adequacy verdict."""
+
+    model: str
+    physics_train: float
+    hybrid_train: float
+    physics_validation: float
+    hybrid_validation: float
+    adequacy: Adequacy
+
+    def to_dict(self) -> dict:
+        return {"model": self.model, "nrmse_train": self.hybrid_train, "nrmse_validation": self.hybrid_validation,
+                "physics_nrmse_train": self.physics_train, "physics_nrmse_validation": self.physics_validation,
+                "inadequate": self.adequacy.inadequate, "message": self.adequacy.message}
+
+
+@dataclass
+class Diagnosis:
+    """Everything :func:`diagnose` found (module docstring); :meth:`to_dict` is the ``diagnosis.json`` content."""
+
+    ladder: Ladder
+    residuals: ResidualAnalysis
+    by_input: AmplitudeBins
+    by_output: AmplitudeBins
+    hybrids: list[HybridScore]
+    validation: list[Experiment] = field(repr=False)
+
+    @property
+    def baseline(self) -> ModelScore:
+        return self.ladder.steps[0]
+
+    @property
+    def ranking(self) -> Ranking:
+        return self.ladder.rankings[0]
+
+    @property
+    def verdict(self) -> str:
+        """One paragraph: what is missing, how the error fell, and what the residual on top says."""
+        base, final = self.baseline, self.ladder.final
+        if self.ladder.added:
+            found = (f"missing effect(s) found: {', '.join(self.ladder.added)}. Validation mismatch "
+                     f"{100 * base.nrmse_validation:.2f} % -> {100 * final.nrmse_validation:.2f} %. "
+                     f"Final model: {final.equation}.")
+        else:
+            best = next((e for e in self.ranking.entries if e.improvement is not None), None)
+            detail = "" if best is None else (f" (the best, {best.effect}, improves {self.ranking.criterion.upper()} "
+                                              f"by {best.improvement:.1f}; threshold {self.ranking.threshold:g})")
+            found = (f"no missing effect found among {len(self.ranking.entries)} candidates{detail}. Validation "
+                     f"mismatch {100 * base.nrmse_validation:.2f} %.")
+        return f"{found} Chebyshev residual on the final model: {self.hybrids[-1].adequacy.message.rstrip('.')}."
+
+    def to_dict(self) -> dict:
+        base = self.baseline
+        return {
+            "baseline": {"model": base.name, "equation": base.equation, "nrmse_train": base.nrmse_train,
+                         "nrmse_validation": base.nrmse_validation, "criterion": base.criterion,
+                         "parameters": base.parameters},
+            "ranking": [e.to_dict() for e in self.ranking.entries],
+            "criterion": {"name": self.ranking.criterion, "threshold": self.ranking.threshold},
+            "ladder": self.ladder.to_dicts(),
+            "where_it_fails": {
+                "residual_autocorrelation_lags_outside": self.residuals.autocorrelation_outside.tolist(),
+                "input_cross_correlation_lags_outside": self.residuals.cross_correlation_outside.tolist(),
+                "confidence": self.residuals.confidence,
+                "by_input_amplitude": _bins(self.by_input),
+                "by_output_amplitude": _bins(self.by_output),
+            },
+            "hybrid": [h.to_dict() for h in self.hybrids],
+            "verdict": self.verdict,
+        }
+
+    def figures(self) -> dict[str, Figure]:
+        """Name -> figure: ``compare``, ``residual_analysis``, ``error_by_amplitude``, ``ranking``, ``ladder``."""
+        record = self.validation[0]
+        outputs = {f"{s.name} ({100 * s.nrmse_validation:.2f} %)": simulate_record(s.model, record)[0]
+                   for s in _distinct(self.baseline, self.ladder.final)}
+        return {
+            "compare": overlay_figure(record.t, record.y[:, 0], outputs, f"validation: {record.name}"),
+            "residual_analysis": self.residuals.figure(),
+            "error_by_amplitude": _bins_figure(self.by_input, self.by_output),
+            "ranking": self.ranking.figure(),
+            "ladder": self.ladder.figure(),
+        }
+
+
+def _distinct(first: ModelScore, last: ModelScore) -> list[ModelScore]:
+    return [first] if last is first else [first, last]
+
+
+def _bins(bins: AmplitudeBins) -> dict:
+    return {"edges": bins.edges.tolist(), "counts": bins.counts.tolist(),
+            "nrmse": [None if m != m else float(m) for m in bins.mismatch]}
+
+
+def _bins_figure(by_input: AmplitudeBins, by_output: AmplitudeBins) -> Figure:
+    fig = Figure(figsize=(9, 3.5), layout="constrained")
+    for ax, bins, label in zip(fig.subplots(1, 2), (by_input, by_output), ("|u|", "|y|"), strict=True):
+        centers = (bins.edges[1:] + bins.edges[:-1]) / 2
+        ax.bar(centers, 100 * bins.mismatch, width=0.9 * (bins.edges[1] - bins.edges[0]))
+        ax.set_xlabel(f"{label} bin")
+        ax.set_ylabel("mismatch in bin (%)")
+    fig.suptitle("where the fitted physics fails (validation)")
+    return fig
+
+
+def _stack(records: list[Experiment], what: str) -> tuple[torch.Tensor, torch.Tensor]:
+    lengths = {len(r.t) for r in records}
+    if len(lengths) > 1:
+        raise DataError(f"the residual stage stacks the {what} records, which needs equal lengths; got {sorted(lengths)}. "
+                        "Cut them to one length")
+    return torch.stack([r.u for r in records]), torch.stack([r.y for r in records])
+
+
+def _hybrid(step: ModelScore, train: list[Experiment], validation: list[Experiment], alpha: float) -> HybridScore:
+    """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid."""
+    residual = ChebyshevHammerstein(alpha)
+    t = train[0].t - train[0].t[0]
+    u, y = _stack(train, "training")
+    y_physics = torch.cat([simulate_record(step.model, r) for r in train])
+    fit_chebyshev_hammerstein(residual, t, u, y - y_physics)
+    with torch.no_grad():
+        hybrid_train = mismatch(y, y_physics + residual(t, u))
+        v_u, v_y = _stack(validation, "validation")
+        v_t = validation[0].t - validation[0].t[0]
+        v_physics = torch.cat([simulate_record(step.model, r) for r in validation])
+        hybrid_validation = mismatch(v_y, v_physics + residual(v_t, v_u))
+    whiteness = residual_analysis(u[0, :, 0], (y - y_physics)[0, :, 0])
+    white = (len(whiteness.autocorrelation_outside) <= WHITE_SHARE * len(whiteness.lags)
+             and len(whiteness.cross_correlation_outside) <= WHITE_SHARE * len(whiteness.cross_lags))
+    adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
+                               residual_white=white)
+    return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy)
+
+
+def diagnose(
+    physics,
+    candidates: Sequence[AbstractEffect],
+    train: Experiment | Sequence[Experiment],
+    validation: Experiment | Sequence[Experiment],
+    *,
+    alpha: float | None = None,
+    **ranking_options,
+) -> Diagnosis:
+    """Run the whole diagnosis (module docstring).
+
+    Args:
+        physics: the physics to diagnose (not modified); its learnable parameters are fitted.
+        candidates: effects at zero strength.
+        train, validation: records.
+        alpha: Chebyshev domain of the residual; default 1.05 max |u| over all records.
+        ranking_options: forwarded to :func:`~torchpaml.diagnostics.rank_missing_effects`.
+    """
+    train = [train] if isinstance(train, Experiment) else list(train)
+    validation = [validation] if isinstance(validation, Experiment) else list(validation)
+    ladder = model_ladder(physics, candidates, train, validation, **ranking_options)
+    base = ladder.steps[0]
+    record = validation[0]
+    y_model = simulate_record(base.model, record)[0]
+    residuals = residual_analysis(record.u[:, 0], (record.y - y_model)[:, 0])
+    by_input = error_by_amplitude(record.u, record.y, y_model)
+    by_output = error_by_amplitude(record.y, record.y, y_model)
+    alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
+    hybrids = [_hybrid(step, train, validation, alpha) for step in _distinct(base, ladder.final)]
+    return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation)

@@ -1,0 +1,87 @@
+r"""The model ladder: physics -> physics + best effect -> ... until no candidate helps significantly.
+
+Each rung runs :func:`~torchpaml.diagnostics.rank_missing_effects` on the current model with the
+candidates not yet added. If it recommends an effect (its criterion beats the current model's by more
+than the threshold), the refitted model becomes the next rung; otherwise the ladder stops.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from matplotlib.figure import Figure
+
+from torchpaml.data import Experiment
+from torchpaml.diagnostics.ranking import ModelScore, Ranking, rank_missing_effects
+from torchpaml.physics.effects import AbstractEffect
+
+__all__ = ["Ladder", "model_ladder"]
+
+
+@dataclass
+class Ladder:
+    """``steps[0]`` is the fitted physics, ``steps[i]`` the model after the i-th added effect (``added[i - 1]``).
+
+    ``rankings[i]`` is the ranking made on ``steps[i]``; the last one recommended nothing (or no
+    candidate was left).
+    """
+
+    steps: list[ModelScore]
+    added: list[str]
+    rankings: list[Ranking]
+
+    @property
+    def final(self) -> ModelScore:
+        return self.steps[-1]
+
+    def to_dicts(self) -> list[dict]:
+        """One dict per rung: ``{model, equation, added, nrmse_train, nrmse_validation, criterion, parameters}``."""
+        return [
+            {"model": s.name, "equation": s.equation, "added": None if i == 0 else self.added[i - 1],
+             "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
+             "parameters": s.parameters}
+            for i, s in enumerate(self.steps)
+        ]
+
+    def figure(self) -> Figure:
+        """Validation (and training) mismatch per rung, on a log scale."""
+        fig = Figure(figsize=(7, 4), layout="constrained")
+        ax = fig.subplots()
+        labels = ["physics", *(f"+ {name}" for name in self.added)]
+        steps = range(len(self.steps))
+        ax.semilogy(steps, [100 * s.nrmse_validation for s in self.steps], "o-", label="validation")
+        ax.semilogy(steps, [100 * s.nrmse_train for s in self.steps], "s--", label="training")
+        ax.set_xticks(list(steps), labels)
+        ax.set_ylabel("mismatch (%)")
+        ax.set_title("model ladder")
+        ax.legend()
+        return fig
+
+
+def model_ladder(
+    physics,
+    candidates: Sequence[AbstractEffect],
+    train: Experiment | Sequence[Experiment],
+    validation: Experiment | Sequence[Experiment],
+    *,
+    max_steps: int | None = None,
+    **ranking_options,
+) -> Ladder:
+    """Climb the ladder (module docstring); ``ranking_options`` go to :func:`rank_missing_effects`.
+
+    ``max_steps`` bounds the number of effects added (default: as many as keep helping).
+    """
+    remaining = list(candidates)
+    ranking = rank_missing_effects(physics, remaining, train, validation, **ranking_options)
+    steps, added, rankings = [ranking.baseline], [], [ranking]
+    while ranking.recommended is not None and (max_steps is None or len(added) < max_steps):
+        best = ranking.recommended
+        steps.append(best.refit)
+        added.append(best.effect)
+        remaining = [c for c in remaining if c.name != best.effect]
+        if not remaining:
+            break
+        ranking = rank_missing_effects(best.refit.model, remaining, train, validation, **ranking_options)
+        rankings.append(ranking)
+    return Ladder(steps, added, rankings)
