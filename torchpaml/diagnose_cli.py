@@ -1,0 +1,108 @@
+"""``torchpaml diagnose``: the diagnosis of a physics model on measured records, from the command line.
+
+``torchpaml diagnose --data TRAIN.csv --validation VAL.csv --physics oscillator [--fix omega0=2.0] --out DIR``
+fits the library physics (every parameter learnable unless fixed), ranks the library effects as
+the missing one, climbs the model ladder, fits the Chebyshev residual on top and writes the report
+(:func:`~torchpaml.diagnostics.report.write_report`). ``torchpaml diagnose --config FILE.yaml`` takes
+the same keys from YAML, where ``physics`` and ``candidates`` may also be user classes
+(``class_path``/``init_args``), so user-defined physics and user-defined effects are diagnosed the
+same way.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from jsonargparse import ActionConfigFile, ArgumentParser
+
+from torchpaml.data import Experiment
+from torchpaml.physics.base import AbstractPhysics
+from torchpaml.physics.effects import EFFECTS, AbstractEffect
+from torchpaml.physics.registry import PHYSICS, parse_assignments
+
+__all__ = ["diagnose_command", "run_diagnose"]
+
+#: Repeatable flags, spelled ``--fix NAME=VALUE`` on the command line (jsonargparse appends with ``+``).
+REPEATED = {"--fix": "--fix+", "--effect": "--effects+"}
+
+
+def _physics(physics: str | AbstractPhysics, fix: list[str] | None) -> AbstractPhysics:
+    if isinstance(physics, str):
+        if physics not in PHYSICS:
+            raise ValueError(f"unknown physics {physics!r}; choose one of {sorted(PHYSICS)}, or give a class_path "
+                             "to your own physics in a --config file")
+        physics = PHYSICS[physics]()
+        physics.set_learnable(*physics.physical_parameters())
+    values = parse_assignments(fix, "--fix")
+    unknown = sorted(set(values) - set(physics.physical_parameters()))
+    if unknown:
+        raise ValueError(f"--fix names unknown parameter(s) {unknown}; {physics.display_name} has "
+                         f"{sorted(physics.physical_parameters())}")
+    return physics.assign(**values).set_learnable(*values, learn=False)
+
+
+def _candidates(effects: list[str] | None, candidates: list[AbstractEffect] | None) -> list[AbstractEffect]:
+    names = list(EFFECTS) if effects is None and candidates is None else list(effects or [])
+    unknown = sorted(set(names) - set(EFFECTS))
+    if unknown:
+        raise ValueError(f"unknown effect(s) {unknown}; the library has {sorted(EFFECTS)}; put your own effects "
+                         "under `candidates:` in a --config file")
+    chosen = [EFFECTS[name]() for name in names] + list(candidates or [])
+    if not chosen:
+        raise ValueError("no candidate effects: name library effects with --effect, or list `candidates:` in --config")
+    return chosen
+
+
+def diagnose_command(
+    data: str,
+    validation: str,
+    out: str,
+    physics: str | AbstractPhysics = "oscillator",
+    fix: list[str] | None = None,
+    effects: list[str] | None = None,
+    candidates: list[AbstractEffect] | None = None,
+    shortlist: int = 3,
+    criterion: Literal["bic", "aic"] = "bic",
+    threshold: float = 10.0,
+) -> dict:
+    """Diagnose ``physics`` on the records and write the report into ``out``; returns the ``diagnosis.json`` content.
+
+    Args:
+        data: training record, CSV with header ``t,u,y``.
+        validation: validation record, CSV with header ``t,u,y`` (a different input).
+        out: output folder (diagnosis.json, figures/, report.html, tensorboard/).
+        physics: a library physics name (oscillator, pendulum: every parameter learnable), or in a
+            config file a physics object (``class_path``/``init_args``; its own ``learn``).
+        fix: ``NAME=VALUE`` parameters held fixed at VALUE (repeat ``--fix``).
+        effects: library effects to rank (repeat ``--effect NAME``); default all, or none when
+            ``candidates`` are given.
+        candidates: user-defined effects (``AbstractEffect`` subclasses, config only).
+        shortlist: how many of the best-scored candidates are refitted.
+        criterion: ``bic`` or ``aic`` on the validation record.
+        threshold: criterion improvement needed to add an effect.
+    """
+    from torchpaml.diagnostics.diagnosis import diagnose
+    from torchpaml.diagnostics.report import write_report
+
+    model = _physics(physics, fix)
+    chosen = _candidates(effects, candidates)
+    train, held_out = Experiment.from_csv(data), Experiment.from_csv(validation)
+    diagnosis = diagnose(model, chosen, train, held_out, shortlist=shortlist, criterion=criterion,
+                         threshold=threshold)
+    path = write_report(diagnosis, out)
+    print(diagnosis.ranking.table())
+    print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")
+    return diagnosis.to_dict()
+
+
+def run_diagnose(argv: list[str], prog: str = "torchpaml diagnose") -> dict:
+    """Parse ``argv`` (after ``diagnose``) with jsonargparse, ``--config`` included, and run :func:`diagnose_command`."""
+    parser = ArgumentParser(prog=prog, description=__doc__)
+    parser.add_argument("--config", action=ActionConfigFile, help="YAML file with the arguments below")
+    parser.add_function_arguments(diagnose_command)
+    argv = [REPEATED.get(a, a) for a in argv]
+    argv = [f"{REPEATED[a.partition('=')[0]]}={a.partition('=')[2]}" if a.partition("=")[0] in REPEATED else a
+            for a in argv]
+    config = parser.instantiate(parser.parse_args(argv))
+    del config["config"]
+    return diagnose_command(**config)
