@@ -14,20 +14,20 @@ A fixed parameter keeps ``requires_grad=False`` on $\rho$.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 from torch import nn
 from torch.nn.utils import parametrize
 
 __all__ = [
-    "Real",
-    "Positive",
     "Interval",
     "PhysicalParameter",
-    "register_parameters",
+    "Positive",
+    "Real",
     "describe_parameters",
     "format_table",
+    "register_parameters",
 ]
 
 
@@ -110,9 +110,10 @@ def register_parameters(module: nn.Module, declarations: list[PhysicalParameter]
     unknown = sorted(set(learn) - set(names))
     if unknown:
         raise ValueError(f"cannot learn unknown parameter(s) {unknown}; {type(module).__name__} has {names}")
+    declarations = [d if d.constraint is not None else replace(d, constraint=Real()) for d in declarations]
     module._physical = {d.name: d for d in declarations}
     for d in declarations:
-        constraint = d.constraint if d.constraint is not None else Real()
+        constraint = d.constraint
         constraint.check(d.name, float(d.value))
         module.register_parameter(d.name, nn.Parameter(torch.tensor(float(d.value), dtype=torch.float64)))
         parametrize.register_parametrization(module, d.name, constraint, unsafe=True)

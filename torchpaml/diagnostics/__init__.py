@@ -1,8 +1,10 @@
-"""Diagnostics: how the physics compares with the measurements, and where it fails."""
+"""Diagnostics: how the physics compares with the measurements, where it fails, and which effect is missing."""
 
 from torchpaml.diagnostics.adequacy import Adequacy, assess_adequacy
 from torchpaml.diagnostics.compare import Comparison, compare
+from torchpaml.diagnostics.diagnosis import Diagnosis, HybridScore, diagnose
 from torchpaml.diagnostics.harmonics import HarmonicFingerprint, harmonic_fingerprint
+from torchpaml.diagnostics.ladder import Ladder, model_ladder
 from torchpaml.diagnostics.ranking import (
     EffectEvidence,
     ModelScore,
@@ -21,16 +23,21 @@ __all__ = [
     "Adequacy",
     "AmplitudeBins",
     "Comparison",
+    "Diagnosis",
     "EffectEvidence",
     "HarmonicFingerprint",
+    "HybridScore",
+    "Ladder",
     "ModelScore",
     "Ranking",
     "ResidualAnalysis",
     "ValidityMap",
     "assess_adequacy",
     "compare",
+    "diagnose",
     "error_by_amplitude",
     "harmonic_fingerprint",
+    "model_ladder",
     "rank_missing_effects",
     "residual_analysis",
     "validity_map",

@@ -17,6 +17,7 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -136,7 +137,7 @@ def _distinct(first: ModelScore, last: ModelScore) -> list[ModelScore]:
 
 def _bins(bins: AmplitudeBins) -> dict:
     return {"edges": bins.edges.tolist(), "counts": bins.counts.tolist(),
-            "nrmse": [None if m != m else float(m) for m in bins.mismatch]}
+            "nrmse": [float(m) if math.isfinite(m) else None for m in bins.mismatch]}
 
 
 def _bins_figure(by_input: AmplitudeBins, by_output: AmplitudeBins) -> Figure:

@@ -262,6 +262,8 @@ def rank_missing_effects(
     if present & set(names):
         raise ValueError(f"candidate(s) {sorted(present & set(names))} are already in {physics.display_name}; "
                          "drop them from the candidates")
+    for candidate in candidates:  # fail fast, before any fit, on an effect that does not fit the physics
+        copy.deepcopy(physics) + copy.deepcopy(candidate)
     base = copy.deepcopy(physics)
     fit = fit_least_squares(base, train, max_nfev=max_nfev)
     baseline = score_model(base, fit, validation, criterion)

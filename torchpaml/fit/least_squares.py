@@ -15,8 +15,10 @@ per-step overhead. Nonlinear physics is integrated by fixed-step RK4 on the samp
 $O(h^2)$; adaptive step control would make it piecewise smooth. Linear physics keeps the exact
 discretisation (one cheap simulation per row).
 
-Parameters batched along rows have shape (rows,) where the model reads them, so physics and
-effects must combine parameters with states elementwise, as every library model does.
+Rows are batched for :class:`~torchpaml.physics.SecondOrderPhysics` (composed models included),
+whose accelerations, forces and maps see position, velocity and input as (rows,) signals, so a
+parameter batched to shape (rows,) broadcasts elementwise, as in every library model and effect.
+Other physics (a state of shape (rows, n_state) would not broadcast) is simulated row by row.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from torch.func import functional_call
 
 from torchpaml.data import Experiment
 from torchpaml.errors import SimulationError
+from torchpaml.physics.base import SecondOrderPhysics
 
 __all__ = ["LeastSquaresFit", "fit_least_squares", "raw_parameters", "simulate_record", "simulate_rows"]
 
@@ -81,11 +84,12 @@ def simulate_rows(physics, names: Sequence[str], rows: torch.Tensor, t: torch.Te
         y: (rows, time, n_output). Raises :class:`SimulationError` if any row blows up.
     """
     keys = list(raw_parameters(physics, names))
-    if physics.state_space() is not None:
-        outputs = [functional_call(physics, dict(zip(keys, row, strict=True)), (t, u)) for row in rows]
-        return torch.cat(outputs)
+    linear = physics.state_space() is not None
+    options = {} if linear else {"method": NONLINEAR_METHOD}
+    if linear or not isinstance(physics, SecondOrderPhysics):
+        return torch.cat([functional_call(physics, dict(zip(keys, row, strict=True)), (t, u), options) for row in rows])
     batched = dict(zip(keys, rows.T, strict=True))
-    return functional_call(physics, batched, (t, u.expand(len(rows), -1, -1)), {"method": NONLINEAR_METHOD})
+    return functional_call(physics, batched, (t, u.expand(len(rows), -1, -1)), options)
 
 
 def simulate_record(physics, record: Experiment) -> torch.Tensor:

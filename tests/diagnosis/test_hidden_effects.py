@@ -1,0 +1,83 @@
+"""The acceptance tests of the missing-effect search: one hidden library effect per case, and none.
+
+Each case: an oscillator (ζ = 0.2, ω0 = 2 rad/s, g = 4) plus one library effect generates a
+pseudorandom training record and a multisine validation record (30 s at 20 Hz, 2 % output noise).
+The diagnosed physics is the oscillator alone, with ζ, ω0 and g learnable from a start 25-75 % off.
+The true effect must rank first and be recommended, and adding it must bring the validation
+mismatch within 1.5x the noise floor (the mismatch of the noise-free record, computed here).
+"""
+
+import pytest
+import torch
+
+from torchpaml import Oscillator
+from torchpaml.diagnostics import model_ladder, rank_missing_effects
+from torchpaml.metrics import mismatch
+from torchpaml.physics import EFFECTS, default_effects
+from torchpaml.training.sources import Simulated
+
+NOISE = 0.02
+
+#: effect -> (strength, peak input): strong enough to be seen above 2 % noise, within the physics' range.
+CASES = {
+    "cubic_stiffness": (2.0, 1.5),
+    "quadratic_stiffness": (1.5, 1.0),
+    "pendulum_restoring": (1.0, 1.5),
+    "coulomb_friction": (0.5, 1.0),
+    "quadratic_damping": (0.5, 1.0),
+    "input_saturation": (0.7, 1.5),
+    "output_saturation": (0.5, 1.0),
+    "constant_force": (0.5, 1.0),
+    "dead_zone": (0.3, 1.0),
+}
+
+
+def records(system, amplitude, noise=NOISE):
+    train = Simulated(system, "pseudorandom", amplitude, [0], 30.0, 0.05, noise=noise).experiments()[0]
+    validation = Simulated(system, "multisine", amplitude, [1], 30.0, 0.05, noise=noise).experiments()[0]
+    clean = Simulated(system, "multisine", amplitude, [1], 30.0, 0.05).experiments()[0]
+    return train, validation, mismatch(validation.y, clean.y)
+
+
+def physics():
+    return Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=("zeta", "omega0", "gain"))
+
+
+def truth(name=None, strength=0.0):
+    system = Oscillator(zeta=0.2, omega0=2.0, gain=4.0, learn=())
+    if name is None:
+        return system
+    effect = EFFECTS[name]()
+    system = system + effect
+    return system.assign(**{f"{name}.{effect.strength}": strength})
+
+
+def test_every_library_effect_has_a_case():
+    assert set(CASES) == set(EFFECTS)
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_the_hidden_effect_ranks_first_and_closes_the_gap(name):
+    torch.manual_seed(0)
+    strength, amplitude = CASES[name]
+    train, validation, floor = records(truth(name, strength), amplitude)
+    ranking = rank_missing_effects(physics(), default_effects(), train, validation)
+    best = ranking.entries[0]
+    assert best.effect == name, ranking.table()
+    assert ranking.recommended is best
+    assert ranking.baseline.nrmse_validation > 2 * floor  # the effect was visible in the first place
+    assert best.refit.nrmse_validation < 1.5 * floor, ranking.table()
+    effect = EFFECTS[name]()
+    fitted = best.refit.parameters[f"{name}.{effect.strength}"]
+    assert fitted == pytest.approx(strength, rel=0.1)  # the strength in physical units, from noisy data
+
+
+def test_no_missing_effect_no_discovery():
+    """Data from the oscillator itself: nothing is recommended and the ladder stays at the physics."""
+    train, validation, floor = records(truth(), 1.0)
+    ladder = model_ladder(physics(), default_effects(), train, validation)
+    assert ladder.added == [], ladder.rankings[0].table()
+    assert ladder.rankings[0].recommended is None
+    assert ladder.final.nrmse_validation < 1.5 * floor
+    refitted = [e for e in ladder.rankings[0].entries if e.refit is not None]
+    assert refitted and all(e.improvement < 10 for e in refitted)

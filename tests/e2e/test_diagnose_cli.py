@@ -1,0 +1,168 @@
+"""``torchpaml diagnose``: the command-line contract, a user-defined physics and effect from --config, and errors."""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+from torchpaml.physics import EFFECTS
+
+FIGURES = ("compare", "residual_analysis", "error_by_amplitude", "ranking", "ladder")
+
+USER_MODEL = '''
+import torch
+from torchpaml import SecondOrderPhysics, AbstractPhysics, PhysicalParameter, Positive, Real, register_parameters
+from torchpaml.physics import AbstractEffect
+
+
+class Spring(SecondOrderPhysics):
+    """A user's mass-spring-damper: x'' = g u - c v - k x."""
+
+    def __init__(self, c=1.0, k=3.0, g=1.0, learn=("c", "k", "g")):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("c", c, "1/s", Real()), PhysicalParameter("k", k, "1/s^2", Positive()),
+                                   PhysicalParameter("g", g, "1/s^2", Real())], tuple(learn))
+
+    def acceleration(self, t, x, v, u):
+        return self.g * u - self.c * v - self.k * x
+
+
+class CubicDamping(AbstractEffect):
+    """A user's candidate: F = -c3 v^3."""
+
+    name, equation = "cubic_damping", "- c3*v^3"
+
+    def __init__(self, c3=0.0):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("c3", c3, "s/m^2", Real())], ("c3",))
+
+    def force(self, physics, x, v, u):
+        return -self.c3 * v**3
+
+
+class Tank(AbstractPhysics):
+    """First-order physics: effects for mechanical physics do not fit it."""
+
+    state_names = ("level",)
+
+    def __init__(self, a=1.0):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("a", a, "1/s", Positive())], ("a",))
+
+    def derivative(self, t, x, u):
+        return u - self.a * x
+
+    def output(self, x, u):
+        return x
+'''
+
+
+def run(*args, cwd, env=None):
+    return subprocess.run([sys.executable, "-m", "torchpaml", "diagnose", *args], capture_output=True, text=True,
+                          cwd=cwd, timeout=600, env=env)
+
+
+def simulate_cli(cwd, name, signal, seed, effect="quadratic_damping=0.5"):
+    done = subprocess.run(
+        [sys.executable, "-m", "torchpaml", "simulate", "--physics", "oscillator", "--set", "zeta=0.2", "--set",
+         "gain=4", "--effect", effect, "--signal", signal, "--amplitude", "1", "--duration", "30", "--dt", "0.05",
+         "--noise", "0.02", "--seed", str(seed), "--out", name],
+        capture_output=True, text=True, cwd=cwd, timeout=300)
+    assert done.returncode == 0, done.stderr
+
+
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    """Train (pseudorandom) and validation (multisine) CSVs with a hidden quadratic damping, written by the CLI."""
+    folder = tmp_path_factory.mktemp("measured")
+    simulate_cli(folder, "train.csv", "pseudorandom", 0)
+    simulate_cli(folder, "val.csv", "multisine", 1)
+    return folder
+
+
+def test_the_contract_run_writes_json_figures_html_and_tensorboard(measured):
+    done = run("--data", "train.csv", "--validation", "val.csv", "--physics", "oscillator", "--fix", "omega0=2.0",
+               "--out", "out", cwd=measured)
+    assert done.returncode == 0, done.stderr
+    out = measured / "out"
+    report = json.loads((out / "diagnosis.json").read_text())
+    assert {"baseline", "ranking", "ladder", "verdict"} <= set(report)
+    assert {"nrmse_train", "nrmse_validation", "parameters"} <= set(report["baseline"])
+    assert report["baseline"]["parameters"]["omega0"] == 2.0  # fixed
+    assert sorted(e["effect"] for e in report["ranking"]) == sorted(EFFECTS)
+    assert all({"effect", "score", "nrmse_validation", "parameters"} <= set(e) for e in report["ranking"])
+    assert report["ranking"][0]["effect"] == "quadratic_damping"
+    assert report["ranking"][0]["parameters"]["quadratic_damping.c2"] == pytest.approx(0.5, rel=0.1)
+    ladder = report["ladder"]
+    assert [step["model"] for step in ladder] == ["Oscillator", "Oscillator + quadratic_damping"]
+    assert ladder[1]["nrmse_validation"] < ladder[0]["nrmse_validation"] / 2
+    assert "quadratic_damping" in report["verdict"]
+    html = (out / "report.html").read_text()
+    for name in FIGURES:
+        assert (out / "figures" / f"{name}.png").stat().st_size > 1000
+        assert f'src="figures/{name}.png"' in html
+    events = EventAccumulator(str(out / "tensorboard"), size_guidance={"scalars": 0, "images": 0})
+    events.Reload()
+    series = [e.value for e in events.Scalars("ladder/nrmse_validation")]
+    assert series == pytest.approx([step["nrmse_validation"] for step in ladder], rel=1e-6)
+    assert {f"diagnose/{name}" for name in FIGURES} <= set(events.Tags()["images"])
+
+
+def test_user_physics_and_user_effect_from_a_config(tmp_path):
+    """A user's Spring with data from a hidden user effect (cubic damping): ranked first against a library effect."""
+    (tmp_path / "user_model.py").write_text(USER_MODEL)
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    script = textwrap.dedent("""
+        import torch
+        from user_model import Spring, CubicDamping
+        from torchpaml.training.sources import Simulated
+        true = Spring(c=0.8, k=4.0, g=4.0, learn=()) + CubicDamping(0.6)
+        for signal, seed, name in (("pseudorandom", 0, "train.csv"), ("multisine", 1, "val.csv")):
+            Simulated(true, signal, 1.0, [seed], 30.0, 0.05, noise=0.02).experiments()[0].to_csv(name)
+    """)
+    subprocess.run([sys.executable, "-c", script], check=True, cwd=tmp_path, env=env, timeout=300)
+    (tmp_path / "config.yaml").write_text(textwrap.dedent("""
+        data: train.csv
+        validation: val.csv
+        out: out
+        physics:
+          class_path: user_model.Spring
+          init_args: {c: 0.5, k: 3.0, g: 2.0}
+        effects: [quadratic_stiffness]
+        candidates:
+          - class_path: user_model.CubicDamping
+    """))
+    done = run("--config", "config.yaml", cwd=tmp_path, env=env)
+    assert done.returncode == 0, done.stderr
+    report = json.loads((tmp_path / "out" / "diagnosis.json").read_text())
+    assert report["ranking"][0]["effect"] == "cubic_damping"
+    assert report["ranking"][0]["parameters"]["cubic_damping.c3"] == pytest.approx(0.6, rel=0.15)
+    assert [step["model"] for step in report["ladder"]] == ["Spring", "Spring + cubic_damping"]
+
+
+@pytest.mark.parametrize("args, config, message", [
+    (["--physics", "spring"], None, "unknown physics 'spring'"),
+    (["--effect", "cubic"], None, "unknown effect(s) ['cubic']"),
+    (["--fix", "k9=1"], None, "unknown parameter(s) ['k9']"),
+    (["--fix", "omega0"], None, "is not NAME=NUMBER"),
+    (["--data", "bad.csv"], None, "missing column(s) ['y']"),
+    (["--data", "absent.csv"], None, "absent.csv"),
+    ([], "physics: {class_path: user_model.Tank}", "is not a SecondOrderPhysics"),
+    ([], "physics: {class_path: user_model.Spring, init_args: {c: -4.0}}", "blew up"),
+])
+def test_bad_input_exits_2_with_a_message(measured, tmp_path, args, config, message):
+    (tmp_path / "user_model.py").write_text(USER_MODEL)
+    (tmp_path / "bad.csv").write_text("t,u\n0,1\n0.1,2\n")
+    for name in ("train.csv", "val.csv"):
+        (tmp_path / name).write_text((measured / name).read_text())
+    base = ["--data", "train.csv", "--validation", "val.csv", "--out", "out"]
+    if config is not None:
+        (tmp_path / "config.yaml").write_text(config + "\n")
+        base = ["--config", "config.yaml", *base]
+    done = run(*base, *args, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(tmp_path)})
+    assert done.returncode == 2, done.stdout + done.stderr
+    assert message in done.stderr

@@ -1,0 +1,90 @@
+"""rank_missing_effects: the first-order score's properties, and the errors it raises."""
+
+import pytest
+import torch
+
+from torchpaml import Experiment, Oscillator, simulate
+from torchpaml.diagnostics import rank_missing_effects
+from torchpaml.diagnostics.ranking import _first_order
+from torchpaml.fit.least_squares import fit_least_squares, simulate_record
+from torchpaml.parameters import PhysicalParameter, Positive, register_parameters
+from torchpaml.physics import AbstractEffect, CubicStiffness, DeadZone, InputSaturation, QuadraticDamping
+from torchpaml.signals import pseudorandom, time_grid
+
+
+@pytest.fixture(scope="module")
+def duffing():
+    """Noise-free training and validation records of a weak Duffing oscillator (20 s at 20 Hz)."""
+    t = time_grid(20.0, 0.05)
+    true = Oscillator(zeta=0.2, omega0=2.0, gain=4.0, learn=()) + CubicStiffness(0.5)
+    made = []
+    for seed in (0, 1):
+        u = pseudorandom(t, 1.0, seed=seed)
+        made.append(Experiment(t, u[0], simulate(true, t, u, method="rk4")[0].detach(), f"seed{seed}"))
+    return made
+
+
+def fitted(record):
+    base = Oscillator(zeta=0.3, omega0=2.0, gain=4.0, learn=("zeta", "omega0", "gain"))
+    fit = fit_least_squares(base, record)
+    scale = float(record.y.norm())
+    return base, fit, simulate_record(base, record)[0, :, 0] / scale
+
+
+@pytest.mark.parametrize("effect, order, one_sided", [
+    (CubicStiffness(), 1, False), (QuadraticDamping(), 1, False), (InputSaturation(), 2, True), (DeadZone(), 1, True),
+])
+def test_order_and_probe_invariance(duffing, effect, order, one_sided):
+    """The detected order, and a score that does not depend on the probe strength (1e-4 vs 1e-3) to 1e-3."""
+    base, fit, reference = fitted(duffing[0])
+    name = f"{effect.name}.{effect.strength}"
+    scores = []
+    for probe in (1e-4, 1e-3):
+        score, found, _ = _first_order(base + effect, name, fit, duffing[:1], probe, reference)
+        assert found == order
+        scores.append(score)
+    assert scores[0] == pytest.approx(scores[1], abs=1e-3)
+    assert 0.0 <= scores[0] <= 1.0
+
+
+def test_the_true_effect_explains_almost_all_of_a_small_residual(duffing):
+    """Noise-free data and a weak effect: first order is nearly exact, so the score is near 1 and k1 near k3."""
+    base, fit, reference = fitted(duffing[0])
+    score, _, strength = _first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, duffing[:1], 1e-4, reference)
+    assert score > 0.97
+    assert strength == pytest.approx(0.5, rel=0.15)
+
+
+class Offset(AbstractEffect):
+    """Not off at zero strength: a constant force of 1 plus k."""
+
+    name, equation = "offset", "+ 1 + k"
+
+    def __init__(self, k: float = 0.0):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("k", k)], ("k",))
+
+    def force(self, physics, x, v, u):
+        return (1.0 + self.k) * torch.ones_like(x)
+
+
+class PositiveStrength(AbstractEffect):
+    name, equation = "positive", "- c*x"
+
+    def __init__(self, c: float = 1.0):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("c", c, constraint=Positive())], ("c",))
+
+    def force(self, physics, x, v, u):
+        return -self.c * x
+
+
+@pytest.mark.parametrize("physics, candidates, error, message", [
+    (Oscillator(learn=("zeta",)), [Offset()], ValueError, "changes the model at zero strength"),
+    (Oscillator(learn=("zeta",)), [PositiveStrength()], ValueError, "cannot be 0"),
+    (Oscillator(learn=("zeta",)), [CubicStiffness(), CubicStiffness()], ValueError, "distinct names"),
+    (Oscillator(learn=("zeta",)) + CubicStiffness(), [CubicStiffness()], ValueError, "already in"),
+])
+def test_bad_candidates_are_errors_that_name_the_fix(duffing, physics, candidates, error, message):
+    with pytest.raises(error, match=message):
+        rank_missing_effects(physics, candidates, duffing[0], duffing[1])
