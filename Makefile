@@ -1,15 +1,25 @@
 # Two commands do all the set-up on a fresh machine: `make demo` and `make test` (each installs first).
 PYTHON ?= python3
-OUT ?= results/paper
+DEMO ?= results/demo
 
-.PHONY: install demo test bench contrast
+.PHONY: install demo paper test bench contrast
 
 install:
 	# torch==2.13.0 first: a CPU build; a bare `torch` requirement would pull a multi-GB CUDA build.
 	$(PYTHON) -m pip install -q torch==2.13.0 -e ".[test]"
 
+# The end-to-end diagnosis: measurements of an oscillator with an effect that `diagnose` is not told about.
 demo: install
-	$(PYTHON) experiments/paper/reproduce.py --alpha 4 --alpha 10 --seeds 10 --out $(OUT)
+	mkdir -p $(DEMO)
+	$(PYTHON) -m torchpaml simulate --physics oscillator --set zeta=0.2 --set gain=4 --effect coulomb_friction=0.5 \
+		--signal pseudorandom --amplitude 1 --duration 30 --dt 0.05 --noise 0.02 --seed 0 --out $(DEMO)/train.csv
+	$(PYTHON) -m torchpaml simulate --physics oscillator --set zeta=0.2 --set gain=4 --effect coulomb_friction=0.5 \
+		--signal multisine --amplitude 1 --duration 30 --dt 0.05 --noise 0.02 --seed 1 --out $(DEMO)/validation.csv
+	$(PYTHON) -m torchpaml diagnose --data $(DEMO)/train.csv --validation $(DEMO)/validation.csv \
+		--physics oscillator --out $(DEMO)
+
+paper: install
+	$(PYTHON) experiments/paper/reproduce.py --alpha 4 --alpha 10 --seeds 10 --out results/paper
 
 # pytest exits 5 when it collects no test: that is not a failure of the suite.
 test: install
@@ -18,6 +28,7 @@ test: install
 bench: install
 	$(PYTHON) benchmarks/bench_simulation.py --sizes 8000 800000
 	$(PYTHON) benchmarks/bench_reproduction.py
+	$(PYTHON) benchmarks/bench_ranking.py
 
 contrast: install
 	$(PYTHON) experiments/contrast/run.py --out results/contrast
