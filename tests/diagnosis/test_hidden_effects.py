@@ -61,7 +61,8 @@ def test_the_hidden_effect_ranks_first_and_closes_the_gap(name):
     torch.manual_seed(0)
     strength, amplitude = CASES[name]
     train, validation, floor = records(truth(name, strength), amplitude)
-    ranking = rank_missing_effects(physics(), default_effects(), train, validation)
+    # the true effect's first-order score is first or second in every case, so two refits decide (and keep CI short)
+    ranking = rank_missing_effects(physics(), default_effects(), train, validation, shortlist=2)
     best = ranking.entries[0]
     assert best.effect == name, ranking.table()
     assert ranking.recommended is best
