@@ -7,6 +7,7 @@ import torch
 from torchpaml.errors import DataError, SimulationError
 from torchpaml.simulate.lti import simulate_lti
 from torchpaml.simulate.ode import simulate_ode
+from torchpaml.simulate.shooting import SEGMENT_STEPS, simulate_rk4
 
 __all__ = ["simulate", "uniform_step"]
 
@@ -39,6 +40,8 @@ def simulate(
     adjoint: bool = False,
     max_num_steps: int = 1_000_000,
     knots: torch.Tensor | None = None,
+    substeps: int = 1,
+    segment: int = SEGMENT_STEPS,
     blowup: float = 1e8,
 ) -> torch.Tensor:
     r"""Simulate $y = \mathcal H^\theta[u]$ for the piecewise-linear input through the samples.
@@ -48,9 +51,12 @@ def simulate(
         t: sample times in s, shape (time,), shared by the batch.
         u: input samples, shape (batch, time, n_input), float64.
         x0: initial state (batch, n_state); rest if omitted.
-        method: ``"auto"`` (exact for linear physics on a uniform grid, else ``"dopri5"``),
-            ``"exact"``, or any torchdiffeq method name.
+        method: ``"auto"`` (exact for linear physics on a uniform grid, else ``"rk4"``), ``"exact"``,
+            ``"rk4"`` (fixed-step RK4 on the sample grid, parallel in time:
+            :func:`~torchpaml.simulate.shooting.simulate_rk4`), or any other torchdiffeq method name
+            (``"dopri5"``: adaptive, with error control).
         rtol, atol, adjoint, max_num_steps: passed to the torchdiffeq solver.
+        substeps, segment: RK4 steps per sample interval, and steps per shooting segment (``"rk4"``).
         knots: times where the input's slope jumps, stepped on by adaptive solvers (see
             :func:`~torchpaml.simulate.ode.simulate_ode`); the exact path needs none.
         blowup: an output beyond this magnitude raises :class:`SimulationError`.
@@ -74,9 +80,11 @@ def simulate(
         if h is not None:
             y = simulate_lti(*matrices, h, u, x0)
             return _checked(y, t, blowup)
-    ode_method = "dopri5" if method in ("auto", "exact") else method
+    if method in ("auto", "rk4"):
+        states = simulate_rk4(physics, t, u, x0, substeps=substeps, segment=segment)
+        return _checked(physics.output(states, u), t, blowup)
     states = simulate_ode(
-        physics, t, u, x0, method=ode_method, rtol=rtol, atol=atol, adjoint=adjoint, max_num_steps=max_num_steps,
+        physics, t, u, x0, method=method, rtol=rtol, atol=atol, adjoint=adjoint, max_num_steps=max_num_steps,
         knots=knots,
     )
     return _checked(physics.output(states, u), t, blowup)

@@ -1,0 +1,144 @@
+"""The parallel-in-time RK4 engine against oracles: dopri5, its own sequential run, its order, gradients.
+
+Tolerances:
+- RK4's global error on a damped oscillator is about $(h\\omega)^4/(120\\,\\zeta)$ relative (local error
+  $(h\\omega)^5/120$ per step, accumulated over the memory $1/(\\zeta\\omega)$); at $h\\omega_0 = 0.2$, $\\zeta = 0.2$
+  that is 6.7e-5, and the test allows 2e-4 for the stiffening of the cubic term;
+- multiple shooting converges to the sequential RK4 solution: Newton stops at a defect of 1e-7 and
+  applies its last update linearly, so they agree to O(1e-14) relative, held to 1e-10;
+- gradients use central differences of the starts (error ~1e-10) and are compared with central
+  differences of the whole simulation at rtol 1e-6.
+"""
+
+import pytest
+import torch
+
+from torchpaml import Oscillator, SimulationError, simulate
+from torchpaml.physics import CubicStiffness
+from torchpaml.signals import multisine, time_grid
+
+
+def _duffing(zeta=0.2, k3=2.0):
+    return Oscillator(zeta=zeta, omega0=2.0, gain=4.0, learn=("zeta",)) + CubicStiffness(k3)
+
+
+def _relative(a, b):
+    return float((a - b).abs().max() / b.abs().max())
+
+
+@pytest.fixture
+def drive():
+    t = time_grid(40.0, 0.1)  # h * omega0 = 0.2
+    return t, multisine(t, 1.0, [0.05, 0.1, 0.2, 0.3], seed=0)
+
+
+def test_rk4_agrees_with_dopri5_within_its_error_bound(drive):
+    t, u = drive
+    with torch.no_grad():
+        reference = simulate(_duffing(), t, u, method="dopri5", rtol=1e-10, atol=1e-12)
+        y = simulate(_duffing(), t, u, method="rk4")
+    assert _relative(y, reference) < 2e-4
+
+
+def test_rk4_converges_at_fourth_order(drive):
+    t, u = drive
+    with torch.no_grad():
+        reference = simulate(_duffing(), t, u, method="dopri5", rtol=1e-12, atol=1e-14)
+        errors = [_relative(simulate(_duffing(), t, u, method="rk4", substeps=m), reference) for m in (1, 2)]
+    assert 12 < errors[0] / errors[1] < 20  # 2^4 = 16
+
+
+@pytest.mark.parametrize("segment", [1, 4, 16])
+def test_multiple_shooting_equals_sequential_rk4(drive, segment):
+    t, u = drive
+    with torch.no_grad():
+        sequential = simulate(_duffing(), t, u, method="rk4", segment=10**6)
+        parallel = simulate(_duffing(), t, u, method="rk4", segment=segment)
+    assert _relative(parallel, sequential) < 1e-10
+
+
+def test_rows_are_independent(drive):
+    t, _ = drive
+    u = torch.cat([multisine(t, a, [0.05, 0.1, 0.2], seed=1) for a in (0.5, 1.0, 2.0)])
+    with torch.no_grad():
+        together = simulate(_duffing(), t, u, method="rk4")
+        alone = torch.cat([simulate(_duffing(), t, u[i : i + 1], method="rk4") for i in range(3)])
+    assert _relative(together, alone) < 1e-12
+
+
+def _central_difference(model_of, value, t, u, weight, step=1e-6):
+    with torch.no_grad():
+        plus = (simulate(model_of(value + step), t, u, method="rk4") * weight).sum()
+        minus = (simulate(model_of(value - step), t, u, method="rk4") * weight).sum()
+    return float((plus - minus) / (2 * step))
+
+
+@pytest.mark.parametrize("name", ["zeta", "k3"])
+def test_reverse_mode_gradient_matches_central_differences(drive, name):
+    t, u = drive
+    weight = torch.randn(u.shape, generator=torch.Generator().manual_seed(0))
+    model = _duffing()
+    model.set_learnable("zeta", "cubic_stiffness.k3")
+    (simulate(model, t, u, method="rk4") * weight).sum().backward()
+    key = "zeta" if name == "zeta" else "cubic_stiffness.k3"
+    owner, leaf = model._owner(key)
+    raw_grad = float(getattr(owner.parametrizations, leaf).original.grad)
+    value = model.physical_parameters()[key]
+    chain = value if name == "zeta" else 1.0  # zeta = exp(raw): d/draw = zeta d/dzeta
+    fd = _central_difference(lambda v: _duffing(**{name: v}), value, t, u, weight)
+    assert raw_grad == pytest.approx(chain * fd, rel=1e-6)
+
+
+def test_gradient_in_initial_state_matches_central_differences(drive):
+    t, u = drive
+    x0 = torch.tensor([[0.3, -0.2]], requires_grad=True)
+    weight = torch.randn(u.shape, generator=torch.Generator().manual_seed(1))
+    (simulate(_duffing(), t, u, x0, method="rk4") * weight).sum().backward()
+    with torch.no_grad():
+        shift = torch.tensor([[1e-6, 0.0]])
+        plus = (simulate(_duffing(), t, u, x0 + shift, method="rk4") * weight).sum()
+        minus = (simulate(_duffing(), t, u, x0 - shift, method="rk4") * weight).sum()
+    assert float(x0.grad[0, 0]) == pytest.approx(float((plus - minus) / 2e-6), rel=1e-6)
+
+
+def test_forward_mode_equals_reverse_mode(drive):
+    t, u = drive
+    model = _duffing()
+    key = "base.parametrizations.zeta.original"
+    raw = model.base.parametrizations.zeta.original.detach().clone()
+
+    def output(r):
+        return torch.func.functional_call(model, {key: r}, (t, u), {"method": "rk4"})
+
+    _, tangent = torch.func.jvp(output, (raw,), (torch.ones_like(raw),))
+    cotangent = torch.randn(u.shape, generator=torch.Generator().manual_seed(2))
+    (reverse,) = torch.autograd.grad((output(raw.requires_grad_()) * cotangent).sum(), raw)
+    assert float((tangent * cotangent).sum()) == pytest.approx(float(reverse), rel=1e-9)
+
+
+def test_gradcheck_in_parameter_and_input():
+    t = torch.arange(40, dtype=torch.float64) * 0.1
+    u = multisine(t, 1.0, [0.1, 0.3], seed=3).requires_grad_()
+
+    def run(raw_zeta, u):
+        return torch.func.functional_call(_duffing(), {"base.parametrizations.zeta.original": raw_zeta}, (t, u),
+                                          {"method": "rk4", "segment": 8})
+
+    assert torch.autograd.gradcheck(run, (torch.tensor(-1.5, requires_grad=True), u))
+
+
+def test_non_uniform_time_is_simulated_by_the_same_engine(drive):
+    t, u = drive
+    keep = torch.arange(len(t)) % 3 != 2  # every third sample missing
+    t, u = t[keep], u[:, keep]
+    with torch.no_grad():
+        reference = simulate(_duffing(), t, u, method="dopri5", rtol=1e-10, atol=1e-12, knots=t)
+        y = simulate(_duffing(), t, u, method="rk4", substeps=2)
+    assert _relative(y, reference) < 2e-4
+
+
+def test_unstable_parameters_raise_a_simulation_error(drive):
+    t, u = drive
+    unstable = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(-5.0)  # softening: escapes to infinity
+    with pytest.raises(SimulationError, match="blew up"), torch.no_grad():
+        simulate(unstable, t, 3 * u, method="rk4")

@@ -1,0 +1,244 @@
+r"""Fixed-step RK4 on the sample grid, parallel in time: multiple shooting with Newton on the segment starts.
+
+**Why.** Eager PyTorch pays a dispatch cost of a few microseconds per operation, and an RK4 step of a
+small ODE is about a hundred operations, so a sample-by-sample loop costs ~200 µs per sample whether
+it carries 1 row or 1000. The cost is the number of *sequential* steps, so this engine makes them few.
+
+**The step.** Between samples $t_k$ and $t_{k+1}$ ($h_k = t_{k+1} - t_k$, any spacing) the input is the
+first-order hold $u(\tau) = u_k + (\tau - t_k)(u_{k+1} - u_k)/h_k$, the hold the exact LTI path
+assumes. ``substeps`` classical RK4 steps of $h_k/m$ advance the state; the global error is
+$O(h^4)$ (tested: halving $h$ divides it by 16).
+
+**Multiple shooting.** The $N - 1$ steps are cut into $S$ segments of $L$ steps. From guesses $\xi_s$ of
+the state at the segment starts, all segments are integrated at once, one batch row each, together
+with $2n$ rows started at $\xi_s \pm \delta_i e_i$. These give every state $x_{s,k}$ of the segment, its end
+$e_s(\xi_s)$, and by central differences the sensitivities $T_{s,k} = \partial x_{s,k}/\partial\xi_s$ (error
+$O(\delta^2)$, $\delta_i = 10^{-5}$ times the scale of state $i$), the end's $G_s = T_{s,L}$ among them.
+Newton's method on the continuity defects $e_s(\xi_s) - \xi_{s+1} = 0$ updates every start at once:
+
+$$ \xi^{+}_0 = x_0, \qquad \xi^{+}_{s+1} = e_s + G_s\,(\xi^{+}_s - \xi_s), $$
+
+a linear recurrence solved by a parallel scan (:func:`~torchpaml.simulate.scan.linear_recurrence`).
+After $j$ sweeps the first $j$ starts are exact, so the iteration ends after at most $S$ sweeps; for a
+smooth, stable system it converges quadratically, in a few. A sweep costs $L$ sequential RK4 steps on
+$B \cdot S \cdot (2n + 1)$ rows. This is parallel-in-time Newton (DEER, Lim et al. 2024) applied to
+segments rather than single steps: inside a segment the integration stays nonlinear, which is what
+keeps Newton from diverging when a cubic term dominates.
+
+**Gradients** (reverse and forward mode) come from the implicit function theorem. With the converged
+starts $\xi^*$ held fixed, one differentiable sweep gives $x_{s,k}(\xi^*_s;\theta)$ and $e_s(\theta)$. The
+starts' sensitivity obeys $\dot\xi_{s+1} = G_s\dot\xi_s + \partial_\theta e_s$: the same scan, applied to the
+zero-valued defects $e_s - \mathrm{sg}(e_s)$ ($\mathrm{sg}$: stop-gradient), so that
+$x_{s,k} + T_{s,k}\,\dot\xi_s$ has the converged value and the exact total derivative.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch.nn.utils import parametrize
+
+from torchpaml.errors import SimulationError
+from torchpaml.simulate.scan import linear_recurrence
+
+__all__ = ["simulate_rk4", "SEGMENT_STEPS"]
+
+#: Default segment length L (steps). A sweep costs L dispatch-bound steps plus arithmetic on every
+#: sample; 16 keeps the first term small without making the scan over segments long.
+SEGMENT_STEPS = 16
+#: Relative size of the start perturbations of the central differences.
+PERTURBATION = 1e-5
+#: Defect (relative to the state's scale) below which the last Newton update is applied linearly.
+NEWTON_TOL = 1e-7
+#: Factor by which the segments lengthen when Newton does not converge in ``max_sweeps`` sweeps.
+GROWTH = 8
+#: Largest Newton step of a start beyond the exact prefix, in units of the state's scale.
+TRUST = 0.25
+
+
+def _rk4_sweep(physics, x: torch.Tensor, t0: torch.Tensor, h: torch.Tensor, u0: torch.Tensor, u1: torch.Tensor,
+               substeps: int, copies: int) -> torch.Tensor:
+    """Integrate ``copies`` stacked row blocks through L steps.
+
+    Args:
+        x: start states, (copies * rows, n).
+        t0, h: step start times and lengths, (rows, L).
+        u0, u1: input at the start and the end of each step, (rows, L, m).
+        copies: how many row blocks share the same time and input.
+
+    Returns:
+        states at the step boundaries, (copies * rows, L + 1, n).
+    """
+    states = [x]
+    f = physics.derivative
+    for k in range(h.shape[1]):
+        t_k, h_k, u_k = t0[:, k].repeat(copies), h[:, k, None].repeat(copies, 1), u0[:, k].repeat(copies, 1)
+        du = u1[:, k].repeat(copies, 1) - u_k
+        step = h_k / substeps
+        for j in range(substeps):
+            a, mid, c = j / substeps, (j + 0.5) / substeps, (j + 1) / substeps
+            t_a, t_mid, t_c = t_k + a * h_k[:, 0], t_k + mid * h_k[:, 0], t_k + c * h_k[:, 0]
+            u_a, u_mid, u_c = u_k + a * du, u_k + mid * du, u_k + c * du
+            k1 = f(t_a, x, u_a)
+            k2 = f(t_mid, x + (step / 2) * k1, u_mid)
+            k3 = f(t_mid, x + (step / 2) * k2, u_mid)
+            k4 = f(t_c, x + step * k3, u_c)
+            x = x + (step / 6) * (k1 + 2 * k2 + 2 * k3 + k4)
+        states.append(x)
+    return torch.stack(states, dim=1)
+
+
+class _Layout:
+    """The record cut into S segments of L steps, padded at the end with steps of length 0."""
+
+    def __init__(self, t: torch.Tensor, u: torch.Tensor, segment: int):
+        batch, N, m = u.shape
+        steps = N - 1
+        self.L = max(1, min(segment, steps))
+        self.S = math.ceil(steps / self.L)
+        pad = self.S * self.L - steps
+        self.batch, self.N = batch, N
+        h = torch.cat([torch.diff(t), t.new_zeros(pad)])
+        t0 = torch.cat([t[:-1], t[-1:].expand(pad)])
+        u0 = torch.cat([u[:, :-1], u[:, -1:].expand(batch, pad, m)], dim=1)
+        u1 = torch.cat([u[:, 1:], u[:, -1:].expand(batch, pad, m)], dim=1)
+        rows = batch * self.S
+        self.h = h.reshape(1, self.S, self.L).expand(batch, -1, -1).reshape(rows, self.L)
+        self.t0 = t0.reshape(1, self.S, self.L).expand(batch, -1, -1).reshape(rows, self.L)
+        self.u0 = u0.reshape(rows, self.L, m)
+        self.u1 = u1.reshape(rows, self.L, m)
+
+    def sweep(self, physics, starts: torch.Tensor, substeps: int, copies: int = 1) -> torch.Tensor:
+        """starts (copies, batch, S, n) -> states (copies, batch, S, L + 1, n)."""
+        n = starts.shape[-1]
+        flat = starts.reshape(-1, n)
+        states = _rk4_sweep(physics, flat, self.t0, self.h, self.u0, self.u1, substeps, copies)
+        return states.reshape(copies, self.batch, self.S, self.L + 1, n)
+
+    def assemble(self, states: torch.Tensor) -> torch.Tensor:
+        """Segment states (batch, S, L + 1, n) -> the record's states (batch, N, n)."""
+        n = states.shape[-1]
+        body = states[:, :, : self.L].reshape(self.batch, self.S * self.L, n)
+        return torch.cat([body, states[:, -1:, self.L]], dim=1)[:, : self.N]
+
+    def time_of_segment(self, s: int) -> float:
+        return float(self.t0.reshape(self.batch, self.S, self.L)[0, s, 0])
+
+
+def _sweep_with_sensitivities(physics, layout: _Layout, starts: torch.Tensor, scale: torch.Tensor, substeps: int):
+    """Centre states (batch, S, L+1, n) and T = d states / d start (batch, S, L+1, n, n), central differences."""
+    n = starts.shape[-1]
+    delta = PERTURBATION * scale
+    offsets = torch.cat([torch.zeros(1, n, dtype=starts.dtype), torch.diag(delta), -torch.diag(delta)])
+    states = layout.sweep(physics, starts[None] + offsets[:, None, None, :], substeps, copies=2 * n + 1)
+    T = ((states[1 : n + 1] - states[n + 1 :]).detach() / (2 * delta[:, None, None, None, None])).movedim(0, -1)
+    return states[0], T
+
+
+def _trusted(ends: torch.Tensor, updated: torch.Tensor, scale: torch.Tensor, x0: torch.Tensor) -> torch.Tensor:
+    r"""The next starts: each segment's nonlinear end plus its Newton correction, clipped to ``TRUST`` scales.
+
+    Newton's start is $\xi^+_{s+1} = e_s + G_s(\xi^+_s - \xi_s)$. Far from the solution the linear correction
+    $G_s(\xi^+_s - \xi_s)$ can overshoot into states the dynamics never reach (where a cubic term makes
+    RK4 itself unstable), so each component is clipped to ``TRUST`` times the state's scale; $e_s$ is
+    the ODE's own propagation and stays plausible. On the exact prefix the correction is 0, so the
+    first ``sweep`` starts stay exact; near the solution nothing is clipped and convergence stays
+    quadratic. A segment that blew up from a wrong start hands $x_0$ to the next one.
+    """
+    limit = TRUST * scale
+    correction = (updated[:, 1:] - ends[:, :-1]).nan_to_num(0.0, 0.0, 0.0).clamp(-limit, limit)
+    following = torch.where(torch.isfinite(ends[:, :-1]), ends[:, :-1] + correction, x0[:, None])
+    return torch.cat([x0[:, None], following], dim=1)
+
+
+def _newton(physics, layout: _Layout, x0: torch.Tensor, substeps: int, tol: float, max_sweeps: int,
+            differentiable: bool):
+    r"""Newton on the segment starts (module docstring).
+
+    Returns the states (batch, S, L+1, n) and, when ``differentiable``, T and the starts of the last
+    sweep, which ran in grad mode. Otherwise the last Newton update is applied to the states linearly,
+    $x + T\,\Delta\xi$ (error $O(|\Delta\xi|^2)$), which saves a sweep.
+    """
+    starts = x0[:, None].expand(-1, layout.S, -1).clone()
+    scale = x0.abs().amax(dim=0).clamp(min=1.0)
+    for sweep in range(1, max_sweeps + 1):
+        graded = differentiable and (sweep > 1 or layout.S == 1)  # the first sweep of several is a guess
+        with torch.set_grad_enabled(graded), parametrize.cached():  # one cache per grad mode
+            centre, T = _sweep_with_sensitivities(physics, layout, starts, scale, substeps)
+        plain = centre.detach()
+        finite = torch.isfinite(plain).flatten(2).all(dim=2).all(dim=0)  # (S,)
+        if not bool(finite[:sweep].all()):  # the first `sweep` starts are exact: the solution itself blows up
+            s = int((~finite).nonzero()[0])
+            raise SimulationError(
+                f"the RK4 simulation blew up (non-finite state) in the segment starting at t = "
+                f"{layout.time_of_segment(s):.4g} s; the parameters are probably unstable or unphysical (e.g. "
+                "negative damping), or the step is too long for the dynamics (raise substeps, or use method='dopri5')"
+            )
+        magnitude = plain.nan_to_num(0.0, 0.0, 0.0).abs().amax(dim=(0, 1, 2))
+        scale = torch.where(torch.isfinite(magnitude) & (magnitude > 0), magnitude, scale)
+        ends, G = plain[:, :, -1], T[:, :, -1]
+        defect = float(((ends[:, :-1] - starts[:, 1:]).abs() / scale).nan_to_num(math.inf).max()) if layout.S > 1 else 0.0
+        if graded and defect <= tol:
+            return centre, T, starts
+        shift = ends[:, :-1] - (G[:, :-1] @ starts[:, :-1, :, None])[..., 0]
+        updated = linear_recurrence(G[:, :-1], shift, x0)
+        if not differentiable and defect <= NEWTON_TOL:
+            return plain + (T @ (updated - starts)[:, :, None, :, None])[..., 0], None, None
+        starts = _trusted(ends, updated, scale, x0)
+    raise _NotConverged
+
+
+class _NotConverged(Exception):
+    """Newton did not converge within its sweeps: :func:`simulate_rk4` retries with longer segments."""
+
+
+def simulate_rk4(
+    physics,
+    t: torch.Tensor,
+    u: torch.Tensor,
+    x0: torch.Tensor,
+    *,
+    substeps: int = 1,
+    segment: int = SEGMENT_STEPS,
+    tol: float = 1e-11,
+    max_sweeps: int = 16,
+) -> torch.Tensor:
+    r"""States of ``physics`` on the sample grid by RK4, parallel in time (module docstring).
+
+    Args:
+        physics: an :class:`~torchpaml.physics.AbstractPhysics`; ``derivative(t, x, u)`` is called with
+            t of shape (rows,), x (rows, n_state), u (rows, n_input).
+        t: sample times, (time,), strictly increasing (uniform or not).
+        u: input samples, (batch, time, n_input).
+        x0: initial state, (batch, n_state).
+        substeps: RK4 steps per sample interval.
+        segment: steps per shooting segment, L.
+        tol: Newton stops when every continuity defect is below ``tol`` times the state's scale.
+        max_sweeps: sweeps before Newton gives up and the segments are made ``GROWTH`` times longer
+            (for chaotic or very stiff records; in the limit one segment, plain sequential RK4).
+
+    Returns:
+        states: (batch, time, n_state), differentiable in the parameters, ``u`` and ``x0`` (reverse and
+        forward mode) when grad mode is on.
+    """
+    if substeps < 1 or segment < 1:
+        raise ValueError(f"substeps and segment must be at least 1, got substeps={substeps}, segment={segment}")
+    if len(t) < 2:
+        return x0[:, None]
+    differentiable = torch.is_grad_enabled()
+    length = segment
+    while True:
+        layout = _Layout(t, u, length)
+        try:
+            states, T, starts = _newton(physics, layout, x0.detach(), substeps, tol, max_sweeps, differentiable)
+            break
+        except _NotConverged:
+            length *= GROWTH  # fewer, longer segments; one segment is plain sequential RK4, which always ends
+    if not differentiable:
+        return layout.assemble(states)
+    ends = states[:, :, -1]
+    defects = ends[:, :-1] - ends[:, :-1].detach()
+    drift = linear_recurrence(T[:, :-1, -1], defects, x0 - x0.detach())
+    states = states + (T @ drift[:, :, None, :, None])[..., 0]
+    return layout.assemble(states)
