@@ -76,6 +76,11 @@ class Experiment:
         """``(t (time,), u (1, time, n_u), y (1, time, n_y))``."""
         return self.t, self.u[None], self.y[None]
 
+    @classmethod
+    def records(cls, t: torch.Tensor, u: torch.Tensor, y: torch.Tensor, name: str = "record") -> list[Experiment]:
+        """One experiment per batch row of t (time,), u (batch, time, n_u), y (batch, time, n_y)."""
+        return [cls(t, u[i], y[i], f"{name}{i}") for i in range(u.shape[0])]
+
     # -- I/O ---------------------------------------------------------------------------------
     @classmethod
     def from_csv(cls, path: str | Path, name: str | None = None) -> Experiment:

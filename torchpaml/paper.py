@@ -5,7 +5,7 @@ True system: the pendulum $\ddot x + 2\zeta\omega_0\dot x + \omega_0^2\sin x = u
 $\omega_0 = 2$ known, $\zeta$ unknown). For each amplitude $\alpha$ and seed:
 
 1. *physical identification*: $u = \alpha\sin(\omega t)$, $\omega = 1$, $T = 80$ s; $\hat\zeta$ by
-   bounded scalar minimisation of the output error on $\zeta \in$ ``zeta_bounds``;
+   the output error minimised by :func:`~torchpaml.fit.fit_physics` on $\zeta \in$ ``zeta_bounds``;
 2. *residual identification*: a pseudorandom input (knots every 0.8 s); the Chebyshev-Hammerstein
    residual ($n = 6$, order 5) fitted to $y - \hat y$;
 3. *validation*: a second pseudorandom input drawn independently;
@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass
 import torch
 
 from torchpaml.certificates import draw_chebyshev, draw_mlp, incompatibility_certificates
+from torchpaml.data import Experiment
 from torchpaml.fit import fit_chebyshev_hammerstein, fit_physics, reestimate_shift
 from torchpaml.metrics import mismatch
 from torchpaml.physics import Oscillator, Pendulum
@@ -89,7 +90,7 @@ def reproduce_alpha(alpha: float, seeds: list[int], setup: PaperSetup = PaperSet
     y_sine, y_random = y_all[:1], y_all[1:]
 
     physics = Oscillator(zeta=setup.zeta_start, omega0=setup.omega0, learn=("zeta",))
-    stage1 = fit_physics(physics, t, u_sine, y_sine, bounds=setup.zeta_bounds)
+    stage1 = fit_physics(physics, Experiment.records(t, u_sine, y_sine), bounds={"zeta": setup.zeta_bounds})
     with torch.no_grad():
         y_hat = physics(t, u_random)
 
@@ -100,7 +101,7 @@ def reproduce_alpha(alpha: float, seeds: list[int], setup: PaperSetup = PaperSet
         fit_chebyshev_hammerstein(residual, t, u_random[train], y_random[train] - y_hat[train])
         with torch.no_grad():
             r = residual(t, u_random)
-        shift = reestimate_shift(physics, residual, t, u_sine, y_sine, bounds=setup.zeta_bounds)
+        shift = reestimate_shift(physics, residual, t, u_sine, y_sine, bounds={"zeta": setup.zeta_bounds})
         per_seed.append(
             {
                 "seed": seed,

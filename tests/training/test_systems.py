@@ -4,7 +4,7 @@ import lightning as L
 import pytest
 import torch
 
-from torchpaml import ChebyshevHammerstein, Oscillator, Pendulum, fit_chebyshev_hammerstein, fit_physics, mismatch
+from torchpaml import ChebyshevHammerstein, Experiment, Oscillator, Pendulum, fit_chebyshev_hammerstein, fit_physics, mismatch
 from torchpaml.training import ExperimentDataModule, JointFit, PhysicsFit, ResidualFit, Simulated
 
 PENDULUM = dict(system=Pendulum(zeta=0.5, omega0=2.0, learn=()), amplitude=4.0, duration=40.0)
@@ -29,10 +29,10 @@ def paper_data():
 @pytest.fixture(scope="module")
 def zeta_hat(paper_data):
     t, u, y = paper_data.records("identification")[0].batch()
-    return fit_physics(Oscillator(zeta=1.0), t, u, y, bounds=(1e-3, 5.0)).parameters["zeta"]
+    return fit_physics(Oscillator(zeta=1.0), Experiment.records(t, u, y), bounds={"zeta": (1e-3, 5.0)}).parameters["zeta"]
 
 
-def test_physics_fit_by_lbfgs_matches_the_bounded_scalar_search(paper_data, zeta_hat):
+def test_lightning_physics_fit_matches_fit_physics(paper_data, zeta_hat):
     data = ExperimentDataModule(train=paper_data.sources["identification"])
     system = train(PhysicsFit(Oscillator(zeta=1.0), bounds={"zeta": (1e-3, 5.0)}), data, epochs=3)
     assert system.physics.zeta.item() == pytest.approx(zeta_hat, rel=1e-6)

@@ -6,7 +6,8 @@ import torch
 from torchpaml import Experiment, Oscillator, simulate
 from torchpaml.diagnostics import rank_missing_effects
 from torchpaml.diagnostics.ranking import _first_order
-from torchpaml.fit.least_squares import fit_least_squares, simulate_record
+from torchpaml.fit import fit_physics
+from torchpaml.simulate import simulate_record
 from torchpaml.parameters import PhysicalParameter, Positive, register_parameters
 from torchpaml.physics import AbstractEffect, CubicStiffness, DeadZone, InputSaturation, QuadraticDamping
 from torchpaml.signals import pseudorandom, time_grid
@@ -26,7 +27,7 @@ def duffing():
 
 def fitted(record):
     base = Oscillator(zeta=0.3, omega0=2.0, gain=4.0, learn=("zeta", "omega0", "gain"))
-    fit = fit_least_squares(base, record)
+    fit = fit_physics(base, record)
     scale = float(record.y.norm())
     return base, fit, simulate_record(base, record)[0, :, 0] / scale
 

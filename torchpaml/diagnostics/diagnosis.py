@@ -31,7 +31,7 @@ from torchpaml.diagnostics.ranking import ModelScore, Ranking
 from torchpaml.diagnostics.residuals import ResidualAnalysis, residual_analysis
 from torchpaml.diagnostics.validity import AmplitudeBins, error_by_amplitude
 from torchpaml.errors import DataError
-from torchpaml.fit.least_squares import simulate_record
+from torchpaml.simulate.sensitivity import simulate_record
 from torchpaml.fit.residual_fit import fit_chebyshev_hammerstein
 from torchpaml.metrics import mismatch
 from torchpaml.physics.effects import AbstractEffect

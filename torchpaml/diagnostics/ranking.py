@@ -1,7 +1,7 @@
 r"""Which effect is missing: rank candidate effects by a first-order score, then by refitted validation error.
 
 1. **Baseline.** The physics' learnable parameters are fitted to the training records
-   (:func:`~torchpaml.fit.least_squares.fit_least_squares`), leaving the residual
+   (:func:`~torchpaml.fit.fit_physics`), leaving the residual
    $r = (y - \hat y)/\|y\|$ and the sensitivities $J = \partial r/\partial\rho$ of the physics' own
    parameters.
 2. **First-order score** (the tangent-space idea of Kuang & Lin). Each candidate $c$ is added at
@@ -38,13 +38,8 @@ from matplotlib.figure import Figure
 
 from torchpaml.data import Experiment
 from torchpaml.errors import SimulationError
-from torchpaml.fit.least_squares import (
-    LeastSquaresFit,
-    fit_least_squares,
-    raw_parameters,
-    simulate_record,
-    simulate_rows,
-)
+from torchpaml.fit.physics_fit import PhysicsEstimate, fit_physics
+from torchpaml.simulate.sensitivity import simulate_record
 from torchpaml.physics.effects import AbstractEffect
 
 __all__ = ["EffectEvidence", "ModelScore", "Ranking", "rank_missing_effects", "score_model"]
@@ -145,7 +140,7 @@ def _records(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]
 
 def score_model(
     physics,
-    fit: LeastSquaresFit,
+    fit: PhysicsEstimate,
     validation: Sequence[Experiment],
     criterion: Literal["bic", "aic"] = "bic",
 ) -> ModelScore:
@@ -164,16 +159,16 @@ def score_model(
                       (sse / norm) ** 0.5, value, physics)
 
 
-def _raw(extended, name: str, value: float) -> torch.Tensor | None:
-    """The raw (unconstrained) value of parameter ``name`` at ``value``, shape (1,); ``None`` if its constraint forbids it."""
+def _probe(extended, name: str, value: float, train: list[Experiment], scale: float) -> torch.Tensor | None:
+    """The normalised outputs on the training records with the strength ``name`` at ``value``; ``None`` if forbidden."""
     try:
         extended.assign(**{name: value})
     except ValueError:
         return None
-    return next(iter(raw_parameters(extended, [name]).values())).detach().clone().reshape(1)
+    return torch.cat([simulate_record(extended, r).flatten() for r in train]) / scale
 
 
-def _first_order(extended, name: str, fit: LeastSquaresFit, train: list[Experiment], probe: float,
+def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experiment], probe: float,
                  reference: torch.Tensor) -> tuple[float, int, float]:
     """(score, order q, first-order strength) of the effect whose strength parameter is ``name`` (module docstring).
 
@@ -181,16 +176,13 @@ def _first_order(extended, name: str, fit: LeastSquaresFit, train: list[Experime
     (second order, or an absolute value such as the dead zone's |d|) can only add a positive multiple
     of its direction, so a negative coefficient scores 0.
     """
-    rows = [_raw(extended, name, value) for value in (0.0, probe, 2 * probe, -probe)]
-    if rows[0] is None:
+    scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
+    outputs = [_probe(extended, name, value, train, scale) for value in (0.0, probe, 2 * probe, -probe)]
+    if outputs[0] is None:
         raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0; "
                          "give it a constraint that allows 0 (e.g. Real())")
     extended.assign(**{name: 0.0})
-    rows = [row if row is not None else rows[0] for row in rows]
-    scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
-    with torch.no_grad():
-        outputs = torch.cat([simulate_rows(extended, [name], torch.stack(rows), r.t - r.t[0], r.u[None]).flatten(1)
-                             for r in train], dim=1) / scale
+    outputs = [out if out is not None else outputs[0] for out in outputs]
     off = float(torch.linalg.vector_norm(outputs[0] - reference) / torch.linalg.vector_norm(reference))
     if off > 1e-3:
         raise ValueError(
@@ -217,16 +209,16 @@ def _first_order(extended, name: str, fit: LeastSquaresFit, train: list[Experime
     return score, order, probe * (beta if order == 1 else beta ** (1 / order))
 
 
-def _refit(extended, name: str, start: float, train: list[Experiment], max_nfev: int) -> LeastSquaresFit:
+def _refit(extended, name: str, start: float, train: list[Experiment], max_nfev: int) -> PhysicsEstimate:
     """Fit ``extended`` from the first-order strength, halving it while the simulation blows up at the start."""
     for _ in range(20):
         extended.assign(**{name: start})
         try:
-            return fit_least_squares(extended, train, max_nfev=max_nfev)
+            return fit_physics(extended, train, max_nfev=max_nfev)
         except SimulationError:
             start /= 2
     extended.assign(**{name: 0.0})
-    return fit_least_squares(extended, train, max_nfev=max_nfev)
+    return fit_physics(extended, train, max_nfev=max_nfev)
 
 
 def rank_missing_effects(
@@ -265,7 +257,7 @@ def rank_missing_effects(
     for candidate in candidates:  # fail fast, before any fit, on an effect that does not fit the physics
         copy.deepcopy(physics) + copy.deepcopy(candidate)
     base = copy.deepcopy(physics)
-    fit = fit_least_squares(base, train, max_nfev=max_nfev)
+    fit = fit_physics(base, train, max_nfev=max_nfev)
     baseline = score_model(base, fit, validation, criterion)
     scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
     reference = torch.cat([simulate_record(base, r).flatten(1) for r in train], dim=1)[0] / scale

@@ -11,6 +11,8 @@ import copy
 
 import torch
 
+from torchpaml.data import Experiment
+
 from torchpaml.fit.physics_fit import fit_physics
 
 __all__ = ["reestimate_shift"]
@@ -22,11 +24,12 @@ def reestimate_shift(physics, residual, t, u, y, **fit_options) -> dict[str, flo
     ``residual`` is either a module that depends on u alone (``residual(t, u)``, as the
     Chebyshev-Hammerstein model does) or the residual's output r itself, a tensor shaped like y
     (for residuals that also read the physics output, evaluate them at the current $\hat y$).
-    ``fit_options`` are those of :func:`~torchpaml.fit.fit_physics` (e.g. ``bounds``).
+    t (time,), u and y (batch, time, ch); ``fit_options`` are those of :func:`~torchpaml.fit.fit_physics`
+    (e.g. ``bounds``).
     """
     before = {n: v for n, v in physics.physical_parameters().items() if n in physics.learnable_names()}
     with torch.no_grad():
         compensated = y - (residual if isinstance(residual, torch.Tensor) else residual(t, u))
     refit = copy.deepcopy(physics)
-    after = fit_physics(refit, t, u, compensated, **fit_options).parameters
+    after = fit_physics(refit, Experiment.records(t, u, compensated), **fit_options).parameters
     return {name: after[name] - before[name] for name in before}

@@ -3,6 +3,7 @@
 from torchpaml.simulate.iir import iir_filter
 from torchpaml.simulate.interpolation import LinearInterpolant
 from torchpaml.simulate.lti import foh_discretize, simulate_lti
+from torchpaml.simulate.sensitivity import output_jacobian, raw_parameters, simulate_record
 from torchpaml.simulate.simulator import simulate, uniform_step
 
-__all__ = ["iir_filter", "LinearInterpolant", "foh_discretize", "simulate_lti", "simulate", "uniform_step"]
+__all__ = ["iir_filter", "LinearInterpolant", "foh_discretize", "simulate_lti", "simulate", "uniform_step", "output_jacobian", "raw_parameters", "simulate_record"]

@@ -42,7 +42,7 @@ from torch.nn.utils import parametrize
 from torchpaml.errors import SimulationError
 from torchpaml.simulate.scan import linear_recurrence
 
-__all__ = ["simulate_rk4", "SEGMENT_STEPS"]
+__all__ = ["RK4Solution", "SEGMENT_STEPS", "simulate_rk4", "solve_rk4"]
 
 #: Default segment length L (steps). A sweep costs L dispatch-bound steps plus arithmetic on every
 #: sample; 16 keeps the first term small without making the scan over segments long.
@@ -157,14 +157,14 @@ def _newton(physics, layout: _Layout, x0: torch.Tensor, substeps: int, tol: floa
     r"""Newton on the segment starts (module docstring).
 
     Returns the states (batch, S, L+1, n) and, when ``differentiable``, T and the starts of the last
-    sweep, which ran in grad mode. Otherwise the last Newton update is applied to the states linearly,
+    sweep, which started at the converged starts. Otherwise the last Newton update is applied to the states linearly,
     $x + T\,\Delta\xi$ (error $O(|\Delta\xi|^2)$), which saves a sweep.
     """
     starts = x0[:, None].expand(-1, layout.S, -1).clone()
     scale = x0.abs().amax(dim=0).clamp(min=1.0)
     for sweep in range(1, max_sweeps + 1):
         graded = differentiable and (sweep > 1 or layout.S == 1)  # the first sweep of several is a guess
-        with torch.set_grad_enabled(graded), parametrize.cached():  # one cache per grad mode
+        with parametrize.cached():
             centre, T = _sweep_with_sensitivities(physics, layout, starts, scale, substeps)
         plain = centre.detach()
         finite = torch.isfinite(plain).flatten(2).all(dim=2).all(dim=0)  # (S,)
@@ -193,7 +193,31 @@ class _NotConverged(Exception):
     """Newton did not converge within its sweeps: :func:`simulate_rk4` retries with longer segments."""
 
 
-def simulate_rk4(
+class RK4Solution:
+    """A converged multiple-shooting solution: the layout, the starts, T, and the states of the last sweep."""
+
+    def __init__(self, layout: _Layout, states: torch.Tensor, T: torch.Tensor | None, starts: torch.Tensor | None,
+                 substeps: int):
+        self.layout, self.centre, self.T, self.starts, self.substeps = layout, states, T, starts, substeps
+
+    def states(self, physics, x0: torch.Tensor) -> torch.Tensor:
+        r"""The record's states (batch, N, n), differentiable through the implicit-function correction.
+
+        One sweep from the converged starts gives $x_{s,k}(\theta)$; the scan of the zero-valued defects
+        $e_s - \mathrm{sg}(e_s)$ gives the starts' drift, and $x + T\,\dot\xi$ carries both (module docstring).
+        Reverse mode (backward) and forward mode (``torch.func.jvp``) both go through it.
+        """
+        if self.T is None:
+            return self.layout.assemble(self.centre)
+        with parametrize.cached():
+            states = self.layout.sweep(physics, self.starts[None], self.substeps)[0]
+        ends = states[:, :, -1]
+        defects = ends[:, :-1] - ends[:, :-1].detach()
+        drift = linear_recurrence(self.T[:, :-1, -1], defects, x0 - x0.detach())
+        return self.layout.assemble(states + (self.T @ drift[:, :, None, :, None])[..., 0])
+
+
+def solve_rk4(
     physics,
     t: torch.Tensor,
     u: torch.Tensor,
@@ -203,7 +227,27 @@ def simulate_rk4(
     segment: int = SEGMENT_STEPS,
     tol: float = 1e-11,
     max_sweeps: int = 16,
-) -> torch.Tensor:
+    sensitivities: bool = True,
+) -> RK4Solution:
+    """Run Newton to convergence (arguments of :func:`simulate_rk4`), without recording gradients.
+
+    With ``sensitivities`` the last sweep starts at the converged starts, so that T there is exact to
+    central-difference accuracy; without, the last update is applied linearly and a sweep is saved.
+    """
+    if substeps < 1 or segment < 1:
+        raise ValueError(f"substeps and segment must be at least 1, got substeps={substeps}, segment={segment}")
+    length = segment
+    while True:
+        layout = _Layout(t, u, length)
+        try:
+            with torch.no_grad():
+                states, T, starts = _newton(physics, layout, x0.detach(), substeps, tol, max_sweeps, sensitivities)
+            return RK4Solution(layout, states, T, starts, substeps)
+        except _NotConverged:
+            length *= GROWTH  # fewer, longer segments; one segment is plain sequential RK4, which always ends
+
+
+def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, **options) -> torch.Tensor:
     r"""States of ``physics`` on the sample grid by RK4, parallel in time (module docstring).
 
     Args:
@@ -212,33 +256,18 @@ def simulate_rk4(
         t: sample times, (time,), strictly increasing (uniform or not).
         u: input samples, (batch, time, n_input).
         x0: initial state, (batch, n_state).
-        substeps: RK4 steps per sample interval.
-        segment: steps per shooting segment, L.
-        tol: Newton stops when every continuity defect is below ``tol`` times the state's scale.
-        max_sweeps: sweeps before Newton gives up and the segments are made ``GROWTH`` times longer
-            (for chaotic or very stiff records; in the limit one segment, plain sequential RK4).
+        options: ``substeps`` (RK4 steps per sample interval, default 1), ``segment`` (steps per
+            shooting segment L, default :data:`SEGMENT_STEPS`), ``tol`` (Newton stops when every
+            continuity defect is below ``tol`` times the state's scale), ``max_sweeps`` (sweeps before
+            Newton gives up and the segments are made :data:`GROWTH` times longer, for chaotic or very
+            stiff records; in the limit one segment, plain sequential RK4).
 
     Returns:
         states: (batch, time, n_state), differentiable in the parameters, ``u`` and ``x0`` (reverse and
         forward mode) when grad mode is on.
     """
-    if substeps < 1 or segment < 1:
-        raise ValueError(f"substeps and segment must be at least 1, got substeps={substeps}, segment={segment}")
     if len(t) < 2:
         return x0[:, None]
     differentiable = torch.is_grad_enabled()
-    length = segment
-    while True:
-        layout = _Layout(t, u, length)
-        try:
-            states, T, starts = _newton(physics, layout, x0.detach(), substeps, tol, max_sweeps, differentiable)
-            break
-        except _NotConverged:
-            length *= GROWTH  # fewer, longer segments; one segment is plain sequential RK4, which always ends
-    if not differentiable:
-        return layout.assemble(states)
-    ends = states[:, :, -1]
-    defects = ends[:, :-1] - ends[:, :-1].detach()
-    drift = linear_recurrence(T[:, :-1, -1], defects, x0 - x0.detach())
-    states = states + (T @ drift[:, :, None, :, None])[..., 0]
-    return layout.assemble(states)
+    solution = solve_rk4(physics, t, u, x0, sensitivities=differentiable, **options)
+    return solution.states(physics, x0)

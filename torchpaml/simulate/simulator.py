@@ -9,7 +9,7 @@ from torchpaml.simulate.lti import simulate_lti
 from torchpaml.simulate.ode import simulate_ode
 from torchpaml.simulate.shooting import SEGMENT_STEPS, simulate_rk4
 
-__all__ = ["simulate", "uniform_step"]
+__all__ = ["checked_output", "simulate", "uniform_step"]
 
 
 def uniform_step(t: torch.Tensor, rtol: float = 1e-6) -> float:
@@ -79,18 +79,19 @@ def simulate(
             h = None
         if h is not None:
             y = simulate_lti(*matrices, h, u, x0)
-            return _checked(y, t, blowup)
+            return checked_output(y, t, blowup)
     if method in ("auto", "rk4"):
         states = simulate_rk4(physics, t, u, x0, substeps=substeps, segment=segment)
-        return _checked(physics.output(states, u), t, blowup)
+        return checked_output(physics.output(states, u), t, blowup)
     states = simulate_ode(
         physics, t, u, x0, method=method, rtol=rtol, atol=atol, adjoint=adjoint, max_num_steps=max_num_steps,
         knots=knots,
     )
-    return _checked(physics.output(states, u), t, blowup)
+    return checked_output(physics.output(states, u), t, blowup)
 
 
-def _checked(y: torch.Tensor, t: torch.Tensor, blowup: float) -> torch.Tensor:
+def checked_output(y: torch.Tensor, t: torch.Tensor, blowup: float = 1e8) -> torch.Tensor:
+    """``y`` itself; raises :class:`SimulationError` naming the time where it is non-finite or beyond ``blowup``."""
     bad = ~torch.isfinite(y) | (y.abs() > blowup)
     if bool(bad.any()):
         k = int(bad.any(dim=0).any(dim=-1).nonzero()[0])

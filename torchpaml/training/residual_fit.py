@@ -8,6 +8,7 @@ from typing import Literal
 import torch
 from torch import nn
 
+from torchpaml.data import Experiment
 from torchpaml.errors import DataError
 from torchpaml.fit import fit_physics, reestimate_shift
 from torchpaml.metrics import mismatch
@@ -28,8 +29,8 @@ class ResidualFit(HybridSystem):
     r"""Fit ``residual`` on the training records to $y - \hat y$, the physics frozen at its stage-1 estimate.
 
     The physics comes from ``physics_checkpoint`` (a :class:`PhysicsFit` checkpoint) or, without
-    one, is fitted at the start of the run on the data module's ``identification`` records (one
-    bounded parameter: Brent's method, as in the paper; several: L-BFGS). Its learnable
+    one, is fitted at the start of the run on the data module's ``identification`` records by
+    :func:`~torchpaml.fit.fit_physics`, the one physics fit. Its learnable
     parameters are the ones identified; after stage 1 they are frozen.
 
     The Chebyshev-Hammerstein residual is fitted by variable projection (L-BFGS over its poles,
@@ -83,10 +84,7 @@ class ResidualFit(HybridSystem):
 
     # -- stage 1 at the start of the run -------------------------------------------------------
     def _stage1_options(self) -> dict:
-        names = self.identified_names
-        if len(names) == 1 and names[0] in self.bounds:
-            return {"bounds": self.bounds[names[0]], **self.simulation}
-        return dict(self.simulation)
+        return {"bounds": {name: self.bounds[name] for name in self.identified_names if name in self.bounds}}
 
     def _identification(self) -> dict | None:
         return self.trainer.datamodule.full_batch("identification")
@@ -109,7 +107,7 @@ class ResidualFit(HybridSystem):
                     "the data module identification records to fit the physics on"
                 )
             self.physics.set_learnable(*self.identified_names)
-            fit = fit_physics(self.physics, batch["t"], batch["u"], batch["y"], **self._stage1_options())
+            fit = fit_physics(self.physics, Experiment.records(batch["t"], batch["u"], batch["y"]), **self._stage1_options())
             self.physics.requires_grad_(False)
             if self.logger is not None and self.trainer.is_global_zero:
                 metrics = {f"physics/identification/{k}": v for k, v in fit.parameters.items()}
