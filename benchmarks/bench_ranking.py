@@ -17,7 +17,7 @@ import torch
 
 from torchpaml import Oscillator
 from torchpaml.diagnostics import rank_missing_effects
-from torchpaml.fit.least_squares import fit_least_squares
+from torchpaml.fit import fit_physics
 from torchpaml.physics import CubicStiffness, default_effects
 from torchpaml.training.sources import Simulated
 
@@ -34,10 +34,10 @@ def main() -> None:
     train = Simulated(true, "pseudorandom", 1.5, [0], 30.0, 0.05, noise=0.02).experiments()[0]
     validation = Simulated(true, "multisine", 1.5, [1], 30.0, 0.05, noise=0.02).experiments()[0]
     physics = Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=("zeta", "omega0", "gain"))
-    linear = timed(lambda: fit_least_squares(copy.deepcopy(physics), train))
+    linear = timed(lambda: fit_physics(copy.deepcopy(physics), train))
     fitted = copy.deepcopy(physics)
-    fit_least_squares(fitted, train)
-    nonlinear = timed(lambda: fit_least_squares(copy.deepcopy(fitted) + CubicStiffness(), train))
+    fit_physics(fitted, train)
+    nonlinear = timed(lambda: fit_physics(copy.deepcopy(fitted) + CubicStiffness(), train))
     ranking = timed(lambda: rank_missing_effects(physics, default_effects(), train, validation))
     exhaustive = timed(lambda: rank_missing_effects(physics, default_effects(), train, validation, shortlist=9))
     print(f"one fit of the physics (linear, exact):          {linear:7.2f} s")

@@ -9,7 +9,7 @@ import time
 
 import torch
 
-from torchpaml import Oscillator, fit_physics
+from torchpaml import Experiment, Oscillator, fit_physics
 from torchpaml.paper import PaperSetup, _measure, reproduce
 from torchpaml.signals import sine, time_grid
 
@@ -21,7 +21,7 @@ def main() -> None:
     u = sine(t, 4.0, setup.omega)
     y = _measure(setup, t, u)
     start = time.perf_counter()
-    fit_physics(Oscillator(zeta=1.0), t, u, y, bounds=setup.zeta_bounds)
+    fit_physics(Oscillator(zeta=1.0), Experiment.records(t, u, y), bounds={"zeta": setup.zeta_bounds})
     one_fit = time.perf_counter() - start
     start = time.perf_counter()
     reproduce([4.0, 10.0], seeds=10)

@@ -47,8 +47,12 @@ __all__ = ["RK4Solution", "SEGMENT_STEPS", "simulate_rk4", "solve_rk4"]
 #: Default segment length L (steps). A sweep costs L dispatch-bound steps plus arithmetic on every
 #: sample; 16 keeps the first term small without making the scan over segments long.
 SEGMENT_STEPS = 16
-#: Relative size of the start perturbations of the central differences.
+#: Relative size of the start perturbations of the central differences (the sweep that feeds gradients).
 PERTURBATION = 1e-5
+#: Relative size of the start perturbations of the forward differences (Newton's G).
+FORWARD_PERTURBATION = 1e-7
+#: Rows per sweep above which segments are lengthened: larger tensors leave the CPU cache.
+CACHE_ROWS = 32768
 #: Defect (relative to the state's scale) below which the last Newton update is applied linearly.
 NEWTON_TOL = 1e-7
 #: Factor by which the segments lengthen when Newton does not converge in ``max_sweeps`` sweeps.
@@ -95,6 +99,7 @@ class _Layout:
     def __init__(self, t: torch.Tensor, u: torch.Tensor, segment: int):
         batch, N, m = u.shape
         steps = N - 1
+        segment = max(segment, math.ceil(batch * steps * 3 / CACHE_ROWS))
         self.L = max(1, min(segment, steps))
         self.S = math.ceil(steps / self.L)
         pad = self.S * self.L - steps
@@ -126,13 +131,20 @@ class _Layout:
         return float(self.t0.reshape(self.batch, self.S, self.L)[0, s, 0])
 
 
-def _sweep_with_sensitivities(physics, layout: _Layout, starts: torch.Tensor, scale: torch.Tensor, substeps: int):
-    """Centre states (batch, S, L+1, n) and T = d states / d start (batch, S, L+1, n, n), central differences."""
+def _sweep_with_sensitivities(physics, layout: _Layout, starts: torch.Tensor, scale: torch.Tensor, substeps: int,
+                              central: bool):
+    """Centre states (batch, S, L+1, n) and T = d states / d start (batch, S, L+1, n, n).
+
+    ``central``: central differences (2n extra rows, error ~1e-10), for the sweep whose T feeds
+    gradients; otherwise forward differences (n extra rows, error ~1e-7), enough for Newton's G.
+    """
     n = starts.shape[-1]
-    delta = PERTURBATION * scale
-    offsets = torch.cat([torch.zeros(1, n, dtype=starts.dtype), torch.diag(delta), -torch.diag(delta)])
-    states = layout.sweep(physics, starts[None] + offsets[:, None, None, :], substeps, copies=2 * n + 1)
-    T = ((states[1 : n + 1] - states[n + 1 :]).detach() / (2 * delta[:, None, None, None, None])).movedim(0, -1)
+    delta = (PERTURBATION if central else FORWARD_PERTURBATION) * scale
+    signs = [torch.diag(delta), -torch.diag(delta)] if central else [torch.diag(delta)]
+    offsets = torch.cat([torch.zeros(1, n, dtype=starts.dtype), *signs])
+    states = layout.sweep(physics, starts[None] + offsets[:, None, None, :], substeps, copies=len(offsets))
+    low = states[n + 1 :] if central else states[:1]
+    T = ((states[1 : n + 1] - low).detach() / ((2 if central else 1) * delta[:, None, None, None, None])).movedim(0, -1)
     return states[0], T
 
 
@@ -165,7 +177,7 @@ def _newton(physics, layout: _Layout, x0: torch.Tensor, substeps: int, tol: floa
     for sweep in range(1, max_sweeps + 1):
         graded = differentiable and (sweep > 1 or layout.S == 1)  # the first sweep of several is a guess
         with parametrize.cached():
-            centre, T = _sweep_with_sensitivities(physics, layout, starts, scale, substeps)
+            centre, T = _sweep_with_sensitivities(physics, layout, starts, scale, substeps, central=graded)
         plain = centre.detach()
         finite = torch.isfinite(plain).flatten(2).all(dim=2).all(dim=0)  # (S,)
         if not bool(finite[:sweep].all()):  # the first `sweep` starts are exact: the solution itself blows up
