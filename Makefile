@@ -2,7 +2,7 @@
 PYTHON ?= python3
 DEMO ?= results/demo
 
-.PHONY: install demo paper test bench contrast
+.PHONY: install demo paper test test-all bench contrast
 
 install:
 	# torch==2.13.0 first: a CPU build; a bare `torch` requirement would pull a multi-GB CUDA build.
@@ -22,11 +22,15 @@ paper: install
 	$(PYTHON) experiments/paper/reproduce.py --alpha 4 --alpha 10 --seeds 10 --out results/paper
 
 # pytest exits 5 when it collects no test: that is not a failure of the suite.
+# `make test`: the fast lane for every edit (no end-to-end runs). `make test-all`: the whole suite, as CI runs it.
 test: install
+	$(PYTHON) -m pytest -q -m "not slow"; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
+
+test-all: install
 	$(PYTHON) -m pytest -q; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
 
 bench: install
-	$(PYTHON) benchmarks/bench_simulation.py --sizes 8000 800000
+	$(PYTHON) benchmarks/bench_simulation.py
 	$(PYTHON) benchmarks/bench_reproduction.py
 	$(PYTHON) benchmarks/bench_ranking.py
 
