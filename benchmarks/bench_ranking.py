@@ -19,7 +19,7 @@ from torchpaml import Oscillator
 from torchpaml.diagnostics import rank_missing_effects
 from torchpaml.fit import fit_physics
 from torchpaml.physics import CubicStiffness, default_effects
-from torchpaml.training.sources import Simulated
+from torchpaml.data import Simulated
 
 
 def timed(work) -> float:

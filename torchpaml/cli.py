@@ -36,7 +36,7 @@ def _paper(args: argparse.Namespace) -> None:
 
 def _simulate(args: argparse.Namespace) -> None:
     from torchpaml.physics.registry import build_model, parse_assignments
-    from torchpaml.training.sources import Simulated
+    from torchpaml.data import Simulated
 
     model = build_model(args.physics, parse_assignments(args.set, "--set"), parse_assignments(args.effect, "--effect"))
     source = Simulated(model, args.signal, args.amplitude, [args.seed], args.duration, args.dt, args.omega,

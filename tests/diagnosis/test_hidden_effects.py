@@ -14,7 +14,7 @@ from torchpaml import Oscillator
 from torchpaml.diagnostics import model_ladder, rank_missing_effects
 from torchpaml.metrics import mismatch
 from torchpaml.physics import EFFECTS, default_effects
-from torchpaml.training.sources import Simulated
+from torchpaml.data import Simulated
 
 NOISE = 0.02
 

@@ -119,7 +119,7 @@ def test_user_physics_and_user_effect_from_a_config(tmp_path):
     script = textwrap.dedent("""
         import torch
         from user_model import Spring, CubicDamping
-        from torchpaml.training.sources import Simulated
+        from torchpaml.data import Simulated
         true = Spring(c=0.8, k=4.0, g=4.0, learn=()) + CubicDamping(0.6)
         for signal, seed, name in (("pseudorandom", 0, "train.csv"), ("multisine", 1, "val.csv")):
             Simulated(true, signal, 1.0, [seed], 30.0, 0.05, noise=0.02).experiments()[0].to_csv(name)

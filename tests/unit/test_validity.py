@@ -6,7 +6,7 @@ import torch
 
 from torchpaml import Oscillator, Pendulum
 from torchpaml.diagnostics.validity import error_by_amplitude, validity_map
-from torchpaml.training import Simulated
+from torchpaml.data import Simulated
 
 
 def test_binned_mismatch_matches_a_direct_computation():

@@ -200,6 +200,8 @@ def diagnose(
     """
     train = [train] if isinstance(train, Experiment) else list(train)
     validation = [validation] if isinstance(validation, Experiment) else list(validation)
+    for record in train + validation:  # checked before any fit: the residual stage's LTI filter needs it
+        record.require_uniform("diagnose (its Chebyshev-Hammerstein residual, an exactly discretised filter)")
     ladder = model_ladder(physics, candidates, train, validation, **ranking_options)
     base = ladder.steps[0]
     record = validation[0]

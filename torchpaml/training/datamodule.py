@@ -20,7 +20,7 @@ from torch.utils.data import DataLoader
 
 from torchpaml.data import Experiment
 from torchpaml.errors import DataError
-from torchpaml.training.sources import ExperimentSource
+from torchpaml.data.sources import ExperimentSource
 
 __all__ = ["ExperimentDataModule", "collate"]
 

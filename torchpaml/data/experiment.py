@@ -72,6 +72,22 @@ class Experiment:
         except DataError as err:
             raise DataError(f"experiment {self.name!r}: {err}") from None
 
+    def require_uniform(self, purpose: str) -> float:
+        """The sampling interval; a :class:`DataError` that names the gaps and the fix if it is not uniform."""
+        steps = torch.diff(self.t)
+        usual = float(steps.median())
+        gaps = (steps - usual).abs() > 1e-6 * usual
+        if not bool(gaps.any()):
+            return usual
+        first = int(gaps.nonzero()[0])
+        raise DataError(
+            f"experiment {self.name!r} is not uniformly sampled: {int(gaps.sum())} of its {len(steps)} steps differ "
+            f"from the usual {usual:.6g} s (from {float(steps.min()):.6g} to {float(steps.max()):.6g} s), the first "
+            f"between t = {float(self.t[first]):.6g} and {float(self.t[first + 1]):.6g} s. {purpose} needs uniform "
+            "sampling: resample the record onto a uniform grid, or use model_ladder / rank_missing_effects, which "
+            "simulate records with missing samples directly"
+        )
+
     def batch(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(t (time,), u (1, time, n_u), y (1, time, n_y))``."""
         return self.t, self.u[None], self.y[None]

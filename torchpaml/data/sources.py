@@ -11,7 +11,7 @@ from typing import Literal
 
 import torch
 
-from torchpaml.data import Experiment
+from torchpaml.data.experiment import Experiment
 from torchpaml.errors import DataError
 from torchpaml.physics.base import AbstractPhysics
 from torchpaml.signals import cosine, multisine, pseudorandom, pseudorandom_knots, sine, time_grid
