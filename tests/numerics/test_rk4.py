@@ -142,3 +142,14 @@ def test_unstable_parameters_raise_a_simulation_error(drive):
     unstable = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(-5.0)  # softening: escapes to infinity
     with pytest.raises(SimulationError, match="blew up"), torch.no_grad():
         simulate(unstable, t, 3 * u, method="rk4")
+
+
+def test_a_warm_start_converges_to_the_same_solution(drive):
+    from torchpaml.simulate.shooting import solve_rk4
+
+    t, u = drive
+    x0 = torch.zeros(1, 2)
+    cold = solve_rk4(_duffing(k3=2.0), t, u, x0)
+    warm = solve_rk4(_duffing(k3=2.1), t, u, x0, guess=cold.trajectory)  # a neighbour's solution as the guess
+    reference = solve_rk4(_duffing(k3=2.1), t, u, x0)
+    assert _relative(warm.trajectory, reference.trajectory) < 1e-10

@@ -100,6 +100,7 @@ def fit_physics(
     scale = float(torch.sqrt(sum(torch.sum(y**2) for y in targets)))
     count = {"simulations": 0}
     memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+    warm = [{} for _ in records]  # each record's last solution starts the next Newton solve
 
     def evaluate(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residual (samples,) and Jacobian (samples, p) at raw values ``x``, once per point."""
@@ -109,7 +110,8 @@ def fit_physics(
             with torch.no_grad():
                 for tensor, value in zip(raw, x, strict=True):
                     tensor.copy_(torch.tensor(value, dtype=torch.float64))
-            parts = [output_jacobian(physics, names, r.t - r.t[0], r.u[None], **simulate_options) for r in records]
+            parts = [output_jacobian(physics, names, r.t - r.t[0], r.u[None], warm=w, **simulate_options)
+                     for r, w in zip(records, warm, strict=True)]
             residual = torch.cat([(y - y_hat).flatten() for y, (y_hat, _) in zip(targets, parts, strict=True)]) / scale
             jacobian = -torch.cat([J.reshape(-1, len(names)) for _, J in parts]) / scale
             memo.clear()

@@ -67,7 +67,8 @@ def _exact(physics, t: torch.Tensor) -> bool:
 
 
 def output_jacobian(
-    physics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None, **options
+    physics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
+    warm: dict | None = None, **options
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Output and its Jacobian in the raw parameters ``names`` (module docstring).
 
@@ -75,6 +76,8 @@ def output_jacobian(
         physics: the model.
         names: physical parameter names, p of them.
         t: (time,); u: (batch, time, n_input); x0: (batch, n_state), rest if omitted.
+        warm: a dict the caller keeps between calls on the same record (a fit's iterations): the RK4
+            path stores its converged states under ``"states"`` and starts the next Newton solve from them.
         options: ``substeps``/``segment`` of the RK4 engine.
 
     Returns:
@@ -86,7 +89,10 @@ def output_jacobian(
     if _exact(physics, t):
         module, arguments = physics, (t, u, x0)
     else:
-        module, arguments = _Tail(physics, solve_rk4(physics, t, u, x0, **options), x0, u), ()
+        warm = {} if warm is None else warm
+        solution = solve_rk4(physics, t, u, x0, guess=warm.get("states"), **options)
+        warm["states"] = solution.trajectory
+        module, arguments = _Tail(physics, solution, x0, u), ()
         raw = {f"physics.{key}": value for key, value in raw.items()}
     if not raw:
         raise ValueError(f"output_jacobian needs at least one parameter name; {physics.display_name} has "

@@ -165,17 +165,21 @@ def _trusted(ends: torch.Tensor, updated: torch.Tensor, scale: torch.Tensor, x0:
 
 
 def _newton(physics, layout: _Layout, x0: torch.Tensor, substeps: int, tol: float, max_sweeps: int,
-            differentiable: bool):
+            differentiable: bool, guess: torch.Tensor | None = None):
     r"""Newton on the segment starts (module docstring).
 
     Returns the states (batch, S, L+1, n) and, when ``differentiable``, T and the starts of the last
     sweep, which started at the converged starts. Otherwise the last Newton update is applied to the states linearly,
     $x + T\,\Delta\xi$ (error $O(|\Delta\xi|^2)$), which saves a sweep.
     """
-    starts = x0[:, None].expand(-1, layout.S, -1).clone()
+    warm = guess is not None and guess.shape[:2] == (x0.shape[0], layout.N) and bool(torch.isfinite(guess).all())
+    if warm:  # a nearby solution's states at the segment starts
+        starts = torch.cat([x0[:, None], guess[:, layout.L : (layout.S - 1) * layout.L + 1 : layout.L]], dim=1)
+    else:
+        starts = x0[:, None].expand(-1, layout.S, -1).clone()
     scale = x0.abs().amax(dim=0).clamp(min=1.0)
     for sweep in range(1, max_sweeps + 1):
-        graded = differentiable and (sweep > 1 or layout.S == 1)  # the first sweep of several is a guess
+        graded = differentiable and (sweep > 1 or layout.S == 1 or warm)  # a cold first sweep is only a guess
         with parametrize.cached():
             centre, T = _sweep_with_sensitivities(physics, layout, starts, scale, substeps, central=graded)
         plain = centre.detach()
@@ -212,6 +216,11 @@ class RK4Solution:
                  substeps: int):
         self.layout, self.centre, self.T, self.starts, self.substeps = layout, states, T, starts, substeps
 
+    @property
+    def trajectory(self) -> torch.Tensor:
+        """The converged states (batch, N, n), without gradients: a warm start for a nearby solve."""
+        return self.layout.assemble(self.centre.detach())
+
     def states(self, physics, x0: torch.Tensor) -> torch.Tensor:
         r"""The record's states (batch, N, n), differentiable through the implicit-function correction.
 
@@ -240,11 +249,14 @@ def solve_rk4(
     tol: float = 1e-11,
     max_sweeps: int = 16,
     sensitivities: bool = True,
+    guess: torch.Tensor | None = None,
 ) -> RK4Solution:
     """Run Newton to convergence (arguments of :func:`simulate_rk4`), without recording gradients.
 
     With ``sensitivities`` the last sweep starts at the converged starts, so that T there is exact to
     central-difference accuracy; without, the last update is applied linearly and a sweep is saved.
+    ``guess``: the states (batch, time, n) of a nearby solution (the previous iterate of a fit), whose
+    values at the segment starts start Newton; without it, Newton starts from $x_0$ held.
     """
     if substeps < 1 or segment < 1:
         raise ValueError(f"substeps and segment must be at least 1, got substeps={substeps}, segment={segment}")
@@ -253,7 +265,8 @@ def solve_rk4(
         layout = _Layout(t, u, length)
         try:
             with torch.no_grad():
-                states, T, starts = _newton(physics, layout, x0.detach(), substeps, tol, max_sweeps, sensitivities)
+                states, T, starts = _newton(physics, layout, x0.detach(), substeps, tol, max_sweeps, sensitivities,
+                                               guess)
             return RK4Solution(layout, states, T, starts, substeps)
         except _NotConverged:
             length *= GROWTH  # fewer, longer segments; one segment is plain sequential RK4, which always ends
