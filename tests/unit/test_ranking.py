@@ -89,3 +89,24 @@ class PositiveStrength(AbstractEffect):
 def test_bad_candidates_are_errors_that_name_the_fix(duffing, physics, candidates, error, message):
     with pytest.raises(error, match=message):
         rank_missing_effects(physics, candidates, duffing[0], duffing[1])
+
+
+@pytest.mark.parametrize("effect", [CubicStiffness(), QuadraticDamping(), InputSaturation(), DeadZone()])
+def test_tangent_linear_outputs_equal_the_simulated_change(duffing, effect):
+    # For a linear base, the first-order change of the output in the strength is the base's linear response to
+    # the effect's force along the baseline. Against RK4 simulations of base + effect (differenced against the
+    # same model at strength 0, so RK4's own error cancels) it differs by O(delta) and by the first-order hold
+    # of the force between samples, O((h omega0)^2) = 1e-2 here: held to 5 %.
+    from torchpaml.diagnostics.ranking import TangentLinear
+
+    record = duffing[0]
+    base, _, _ = fitted(record)
+    extended = base + effect
+    name = f"{effect.name}.{effect.strength}"
+    tangent = TangentLinear.of(base, [record])
+    extended.assign(**{name: 0.0})
+    simulated_off, linear_off = simulate_record(extended, record).flatten(), tangent.outputs(extended)
+    extended.assign(**{name: 1e-3})
+    simulated = simulate_record(extended, record).flatten() - simulated_off
+    linear = tangent.outputs(extended) - linear_off
+    assert float((simulated - linear).norm() / simulated.norm()) < 0.05
