@@ -11,6 +11,7 @@ same way.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Literal
 
 from jsonargparse import ActionConfigFile, ArgumentParser
@@ -84,6 +85,10 @@ def diagnose_command(
     from torchpaml.diagnostics.diagnosis import diagnose
     from torchpaml.diagnostics.report import write_report
 
+    if Path(out).is_file():
+        raise ValueError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
+    if shortlist < 1:
+        raise ValueError(f"--shortlist must be at least 1 (how many best-scored candidates are refitted), got {shortlist}")
     model = _physics(physics, fix)
     chosen = _candidates(effects, candidates)
     train, held_out = Experiment.from_csv(data), Experiment.from_csv(validation)

@@ -153,10 +153,14 @@ def test_user_physics_and_user_effect_from_a_config(tmp_path):
     (["--data", "absent.csv"], None, "absent.csv"),
     ([], "physics: {class_path: user_model.Tank}", "is not a SecondOrderPhysics"),
     ([], "physics: {class_path: user_model.Spring, init_args: {c: -4.0}}", "blew up"),
+    (["--out", "train.csv"], None, "is an existing file"),
+    (["--shortlist", "-1"], None, "--shortlist must be at least 1"),
+    (["--data", "short.csv"], None, "has 3 samples, too few"),
 ])
 def test_bad_input_exits_2_with_a_message(measured, tmp_path, args, config, message):
     (tmp_path / "user_model.py").write_text(USER_MODEL)
     (tmp_path / "bad.csv").write_text("t,u\n0,1\n0.1,2\n")
+    (tmp_path / "short.csv").write_text("t,u,y\n0,1,0\n0.05,1,0.01\n0.1,1,0.02\n")
     for name in ("train.csv", "val.csv"):
         (tmp_path / name).write_text((measured / name).read_text())
     base = ["--data", "train.csv", "--validation", "val.csv", "--out", "out"]

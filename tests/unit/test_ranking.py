@@ -110,3 +110,24 @@ def test_tangent_linear_outputs_equal_the_simulated_change(duffing, effect):
     simulated = simulate_record(extended, record).flatten() - simulated_off
     linear = tangent.outputs(extended) - linear_off
     assert float((simulated - linear).norm() / simulated.norm()) < 0.05
+
+
+def test_candidates_that_do_not_apply_are_skipped_and_listed(duffing):
+    # a user's second-order physics without omega0: pendulum_restoring (scaled by omega0) cannot act on it
+    from torchpaml.physics import PendulumRestoring, SecondOrderPhysics
+
+    class Spring(SecondOrderPhysics):
+        def __init__(self, c=0.8, k=4.0, g=4.0, *, learn=("c", "k", "g")):
+            super().__init__()
+            register_parameters(self, [PhysicalParameter("c", c, "1/s", Positive()),
+                                       PhysicalParameter("k", k, "1/s^2", Positive()),
+                                       PhysicalParameter("g", g, "-", Positive())], learn)
+
+        def acceleration(self, t, x, v, u):
+            return self.g * u - self.c * v - self.k * x
+
+    with pytest.raises(TypeError, match="omega0, and Spring has none"):
+        Spring() + PendulumRestoring()
+    ranking = rank_missing_effects(Spring(), [CubicStiffness(), PendulumRestoring()], *duffing, shortlist=1)
+    assert list(ranking.skipped) == ["pendulum_restoring"] and "omega0" in ranking.skipped["pendulum_restoring"]
+    assert [e.effect for e in ranking.entries] == ["cubic_stiffness"]

@@ -34,6 +34,7 @@ from torchpaml.errors import DataError
 from torchpaml.simulate.sensitivity import simulate_record
 from torchpaml.fit.residual_fit import fit_chebyshev_hammerstein
 from torchpaml.metrics import mismatch
+from torchpaml.parameters import describe_parameters
 from torchpaml.physics.effects import AbstractEffect
 from torchpaml.plots import overlay_figure
 from torchpaml.residual.chebyshev_hammerstein import ChebyshevHammerstein
@@ -104,6 +105,7 @@ class Diagnosis:
                          "nrmse_validation": base.nrmse_validation, "criterion": base.criterion,
                          "parameters": base.parameters},
             "ranking": [e.to_dict() for e in self.ranking.entries],
+            "skipped_candidates": self.ranking.skipped,
             "criterion": {"name": self.ranking.criterion, "threshold": self.ranking.threshold},
             "ladder": self.ladder.to_dicts(),
             "where_it_fails": {
@@ -200,7 +202,13 @@ def diagnose(
     """
     train = [train] if isinstance(train, Experiment) else list(train)
     validation = [validation] if isinstance(validation, Experiment) else list(validation)
-    for record in train + validation:  # checked before any fit: the residual stage's LTI filter needs it
+    most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) for c in candidates),
+                                                default=0)
+    for record in train + validation:  # checked before any fit
+        if len(record.t) <= 2 * most:
+            raise DataError(f"experiment {record.name!r} has {len(record.t)} samples, too few to fit up to {most} "
+                            f"parameters (the physics' and a candidate's) and judge the fit; give records of more "
+                            f"than {2 * most} samples, or fix parameters")
         record.require_uniform("diagnose (its Chebyshev-Hammerstein residual, an exactly discretised filter)")
     ladder = model_ladder(physics, candidates, train, validation, **ranking_options)
     base = ladder.steps[0]

@@ -96,6 +96,7 @@ class Ranking:
     entries: list[EffectEvidence]
     criterion: str
     threshold: float
+    skipped: dict[str, str] = field(default_factory=dict)
 
     @property
     def recommended(self) -> EffectEvidence | None:
@@ -109,6 +110,8 @@ class Ranking:
         """A markdown table: score, validation mismatch, criterion improvement and fitted parameters."""
         head = (f"baseline {self.baseline.name}: train {100 * self.baseline.nrmse_train:.2f} %, "
                 f"validation {100 * self.baseline.nrmse_validation:.2f} %")
+        if self.skipped:
+            head += "\nskipped (do not apply): " + "; ".join(f"{k}: {v}" for k, v in self.skipped.items())
         lines = [head, "",
                  f"| rank | effect | score | validation % | Δ{self.criterion.upper()} | parameters |",
                  "|---|---|---|---|---|---|"]
@@ -313,8 +316,13 @@ def rank_missing_effects(
     if present & set(names):
         raise ValueError(f"candidate(s) {sorted(present & set(names))} are already in {physics.display_name}; "
                          "drop them from the candidates")
-    for candidate in candidates:  # fail fast, before any fit, on an effect that does not fit the physics
-        copy.deepcopy(physics) + copy.deepcopy(candidate)
+    base_model = getattr(physics, "base", physics)
+    skipped = {c.name: reason for c in candidates if (reason := c.applies_to(base_model)) is not None}
+    candidates = [c for c in candidates if c.name not in skipped]
+    if not candidates:  # checked before any fit
+        raise ValueError(f"none of the candidate effects applies to {physics.display_name}: "
+                         + "; ".join(f"{name}: {reason}" for name, reason in skipped.items())
+                         + ". Give candidates written for this physics (`candidates:` in a --config file)")
     base = copy.deepcopy(physics)
     fit = fit_physics(base, train, max_nfev=max_nfev)
     baseline = score_model(base, fit, validation, criterion)
@@ -336,4 +344,4 @@ def rank_missing_effects(
         entry.improvement = baseline.criterion - entry.refit.criterion
     refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
     rest = [e for e in by_score if e.refit is None]
-    return Ranking(baseline, refitted + rest, criterion, threshold)
+    return Ranking(baseline, refitted + rest, criterion, threshold, skipped)

@@ -35,11 +35,11 @@ class ComposedModel(SecondOrderPhysics):
 
     def __init__(self, base: SecondOrderPhysics, effects: list[AbstractEffect]):
         super().__init__()
-        if not isinstance(base, SecondOrderPhysics):
-            raise TypeError(
-                f"effects act on second-order (mechanical) physics with state (position, velocity); "
-                f"{type(base).__name__} is not a SecondOrderPhysics, so write the effect into your own physics instead"
-            )
+        for effect in effects:
+            reason = effect.applies_to(base)
+            if reason is not None:
+                raise TypeError(f"cannot add {effect.name or type(effect).__name__}: {reason}; write the effect into "
+                                "your own physics instead, or choose effects that apply")
         names = [e.name for e in effects]
         clashes = sorted({n for n in names if names.count(n) > 1})
         if clashes:

@@ -76,6 +76,15 @@ class AbstractEffect(nn.Module):
         """The strength parameter: the first declared one. At strength 0 the effect must leave the model unchanged."""
         return next(iter(self._physical))
 
+    def applies_to(self, physics: nn.Module) -> str | None:
+        """Why this effect cannot be added to ``physics`` (the base model), or ``None`` if it can."""
+        from torchpaml.physics.base import SecondOrderPhysics
+
+        if not isinstance(physics, SecondOrderPhysics):
+            return (f"effects act on second-order (mechanical) physics with state (position, velocity); "
+                    f"{type(physics).__name__} is not a SecondOrderPhysics")
+        return None
+
     def force(self, physics: nn.Module, x: torch.Tensor, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor | None:
         return None
 
@@ -122,12 +131,13 @@ class PendulumRestoring(AbstractEffect):
         register_parameters(self, [PhysicalParameter("lam", lam, "-", Real(), "share of sin x in the restoring term")],
                             learn)
 
+    def applies_to(self, physics):
+        reason = super().applies_to(physics)
+        if reason is None and not hasattr(physics, "omega0"):
+            return f"pendulum_restoring scales with the base's omega0, and {physics.display_name} has none"
+        return reason
+
     def force(self, physics, x, v, u):
-        if not hasattr(physics, "omega0"):
-            raise ValueError(
-                f"pendulum_restoring scales with the base's omega0, and {physics.display_name} has none; "
-                "use it with Oscillator-like physics"
-            )
         return self.lam * physics.omega0**2 * (x - torch.sin(x))
 
 
