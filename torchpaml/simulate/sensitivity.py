@@ -20,7 +20,7 @@ from torch import nn
 from torch.func import functional_call, jvp
 
 from torchpaml.simulate.shooting import RK4Solution, solve_rk4
-from torchpaml.simulate.simulator import checked_output, uniform_step
+from torchpaml.simulate.simulator import checked_output, exact_step
 
 if TYPE_CHECKING:
     from torchpaml.data import Experiment
@@ -56,16 +56,6 @@ class _Tail(nn.Module):
         return self.physics.output(self.solution.states(self.physics, self.x0), self.u)
 
 
-def _exact(physics, t: torch.Tensor) -> bool:
-    if physics.state_space() is None:
-        return False
-    try:
-        uniform_step(t)
-    except ValueError:
-        return False
-    return True
-
-
 def output_jacobian(
     physics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
     warm: dict | None = None, **options
@@ -86,7 +76,7 @@ def output_jacobian(
     """
     x0 = physics.initial_state(u.shape[0]).to(u) if x0 is None else x0
     raw = raw_parameters(physics, names)
-    if _exact(physics, t):
+    if exact_step(physics, t) is not None:  # the same routing as simulate(method="auto")
         module, arguments = physics, (t, u, x0)
     else:
         warm = {} if warm is None else warm

@@ -9,7 +9,7 @@ from torchpaml.simulate.lti import simulate_lti
 from torchpaml.simulate.ode import simulate_ode
 from torchpaml.simulate.shooting import SEGMENT_STEPS, simulate_rk4
 
-__all__ = ["checked_output", "simulate", "uniform_step"]
+__all__ = ["checked_output", "exact_step", "simulate", "uniform_step"]
 
 
 def uniform_step(t: torch.Tensor, rtol: float = 1e-6) -> float:
@@ -26,6 +26,16 @@ def uniform_step(t: torch.Tensor, rtol: float = 1e-6) -> float:
             f"{float(dt.max()):.6g} s; resample onto a uniform grid, or use an ODE method (method='dopri5')"
         )
     return h
+
+
+def exact_step(physics, t: torch.Tensor) -> float | None:
+    """The sampling interval when ``physics`` takes the exact path (linear physics, uniform grid), else ``None``."""
+    if physics.state_space() is None:
+        return None
+    try:
+        return uniform_step(t)
+    except DataError:
+        return None
 
 
 def simulate(
@@ -67,19 +77,14 @@ def simulate(
     if u.dim() != 3 or u.shape[1] != t.shape[-1]:
         raise DataError(f"u must have shape (batch, time={t.shape[-1]}, channel), got {tuple(u.shape)}")
     x0 = physics.initial_state(u.shape[0]).to(u) if x0 is None else x0
-    matrices = physics.state_space()
-    if method == "exact" and matrices is None:
-        raise ValueError(f"method='exact' needs linear physics; {type(physics).__name__} is nonlinear. Use 'dopri5'")
-    if method in ("auto", "exact") and matrices is not None:
-        try:
-            h = uniform_step(t)
-        except DataError:
-            if method == "exact":
-                raise
-            h = None
-        if h is not None:
-            y = simulate_lti(*matrices, h, u, x0)
-            return checked_output(y, t, blowup)
+    if method == "exact":
+        if physics.state_space() is None:
+            raise ValueError(f"method='exact' needs linear physics; {type(physics).__name__} is nonlinear. Use 'rk4'")
+        h = uniform_step(t)  # raises, naming the spacing, on a non-uniform grid
+    else:
+        h = exact_step(physics, t) if method == "auto" else None
+    if h is not None:
+        return checked_output(simulate_lti(*physics.state_space(), h, u, x0), t, blowup)
     if method in ("auto", "rk4"):
         states = simulate_rk4(physics, t, u, x0, substeps=substeps, segment=segment)
         return checked_output(physics.output(states, u), t, blowup)
