@@ -65,6 +65,7 @@ def diagnose_command(
     shortlist: int = 3,
     criterion: Literal["bic", "aic"] = "bic",
     threshold: float = 10.0,
+    min_share: float = 0.05,
 ) -> dict:
     """Diagnose ``physics`` on the records and write the report into ``out``; returns the ``diagnosis.json`` content.
 
@@ -81,6 +82,7 @@ def diagnose_command(
         shortlist: how many of the best-scored candidates are refitted.
         criterion: ``bic`` or ``aic`` on the validation record.
         threshold: criterion improvement needed to add an effect.
+        min_share: relative fall of the validation mismatch needed to add an effect (0.05: 5 %).
     """
     from torchpaml.diagnostics.diagnosis import diagnose
     from torchpaml.diagnostics.report import write_report
@@ -89,11 +91,13 @@ def diagnose_command(
         raise ValueError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
     if shortlist < 1:
         raise ValueError(f"--shortlist must be at least 1 (how many best-scored candidates are refitted), got {shortlist}")
+    if not 0 <= min_share < 1:
+        raise ValueError(f"--min_share is a share of the validation mismatch, in [0, 1); got {min_share}")
     model = _physics(physics, fix)
     chosen = _candidates(effects, candidates)
     train, held_out = Experiment.from_csv(data), Experiment.from_csv(validation)
     diagnosis = diagnose(model, chosen, train, held_out, shortlist=shortlist, criterion=criterion,
-                         threshold=threshold)
+                         threshold=threshold, min_share=min_share)
     path = write_report(diagnosis, out)
     print(diagnosis.ranking.table())
     print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")

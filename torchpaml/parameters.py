@@ -27,7 +27,9 @@ __all__ = [
     "Real",
     "describe_parameters",
     "format_table",
+    "record_uncertainty",
     "register_parameters",
+    "unphysical_values",
 ]
 
 
@@ -92,13 +94,19 @@ class Interval(nn.Module):
 
 @dataclass(frozen=True)
 class PhysicalParameter:
-    """Declaration of one physical parameter: its initial value, unit, constraint and meaning."""
+    """Declaration of one physical parameter: its initial value, unit, constraint and meaning.
+
+    ``constraint`` is enforced (the parametrisation cannot leave it); ``physical``, the range where the
+    value means what the physics says (a share in [0, 1], a dissipative coefficient >= 0), is only
+    checked: a fit that ends outside it is flagged by :func:`unphysical_values`, never silently kept.
+    """
 
     name: str
     value: float
     unit: str = "-"
     constraint: nn.Module | None = None
     meaning: str = ""
+    physical: tuple[float, float] | None = None
 
 
 def register_parameters(module: nn.Module, declarations: list[PhysicalParameter], learn: tuple[str, ...]) -> None:
@@ -121,31 +129,62 @@ def register_parameters(module: nn.Module, declarations: list[PhysicalParameter]
 
 
 def describe_parameters(module: nn.Module, prefix: str = "") -> list[dict]:
-    """Rows ``{name, value, unit, constraint, learnable, meaning}`` for every physical parameter below ``module``."""
+    """Rows ``{name, value, unit, constraint, learnable, meaning}`` for every physical parameter below ``module``.
+
+    A parameter whose last fit recorded its uncertainty (:func:`record_uncertainty`) also has
+    ``std`` and ``interval`` (the 95 % confidence interval).
+    """
     rows = []
     for path, sub in module.named_modules():
         for name, decl in getattr(sub, "_physical", {}).items():
             raw = getattr(sub.parametrizations, name).original
-            rows.append(
-                {
-                    "name": prefix + (f"{path}.{name}" if path else name),
-                    "value": float(getattr(sub, name).detach()),
-                    "unit": decl.unit,
-                    "constraint": repr(getattr(sub.parametrizations, name)[0]),
-                    "learnable": bool(raw.requires_grad),
-                    "meaning": decl.meaning,
-                }
-            )
+            row = {
+                "name": prefix + (f"{path}.{name}" if path else name),
+                "value": float(getattr(sub, name).detach()),
+                "unit": decl.unit,
+                "constraint": repr(getattr(sub.parametrizations, name)[0]),
+                "learnable": bool(raw.requires_grad),
+                "meaning": decl.meaning,
+            }
+            if decl.physical is not None:
+                row["physical"] = decl.physical
+            if name in getattr(sub, "_uncertainty", {}):
+                row["std"], row["interval"] = sub._uncertainty[name]
+            rows.append(row)
     return rows
 
 
+def unphysical_values(rows: list[dict]) -> list[str]:
+    """Messages for the :func:`describe_parameters` rows whose value lies outside its declared ``physical`` range."""
+    return [f"{r['name']} = {r['value']:.4g} is outside its physical range [{r['physical'][0]:g}, {r['physical'][1]:g}]"
+            for r in rows if "physical" in r and not r["physical"][0] <= r["value"] <= r["physical"][1]]
+
+
+def record_uncertainty(physics: nn.Module, std: dict[str, float], interval: dict[str, tuple[float, float]]) -> None:
+    """Attach a fit's standard errors and 95 % intervals to ``physics``' parameters (names as ``physics`` reads them).
+
+    Every earlier record below ``physics`` is dropped first, so fixed parameters carry none;
+    assigning a parameter drops its own.
+    """
+    for sub in physics.modules():
+        if hasattr(sub, "_uncertainty"):
+            del sub._uncertainty
+    for name, value in std.items():
+        owner, leaf = physics._owner(name)
+        owner.__dict__.setdefault("_uncertainty", {})[leaf] = (value, interval[name])
+
+
 def format_table(rows: list[dict]) -> str:
-    """A plain-text table of :func:`describe_parameters` rows."""
-    header = f"{'parameter':<16} {'value':>12} {'unit':<8} {'constraint':<16} {'status':<8} meaning"
+    """A plain-text table of :func:`describe_parameters` rows, with ± std and the 95 % interval after a fit."""
+    fitted = any("std" in r for r in rows)
+    spread = f" {'± std':>10} {'95 % interval':<25}" if fitted else ""
+    header = f"{'parameter':<16} {'value':>12}{spread} {'unit':<8} {'constraint':<16} {'status':<8} meaning"
     lines = [header, "-" * len(header)]
     for r in rows:
         status = "learned" if r["learnable"] else "fixed"
-        lines.append(
-            f"{r['name']:<16} {r['value']:>12.6g} {r['unit']:<8} {r['constraint']:<16} {status:<8} {r['meaning']}"
-        )
+        if fitted:
+            lo, hi = r.get("interval", (None, None))
+            spread = (f" {r['std']:>10.3g} {f'[{lo:.4g}, {hi:.4g}]':<25}" if "std" in r else f" {'':>10} {'':<25}")
+        lines.append(f"{r['name']:<16} {r['value']:>12.6g}{spread} {r['unit']:<8} {r['constraint']:<16} {status:<8} "
+                     f"{r['meaning']}")
     return "\n".join(lines)

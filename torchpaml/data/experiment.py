@@ -33,7 +33,7 @@ class Experiment:
     metadata: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        self.t = torch.as_tensor(self.t, dtype=torch.float64).reshape(-1)
+        self.t = torch.as_tensor(self.t, dtype=torch.float64).detach().reshape(-1)
         self.u = _as_columns(self.u, "u")
         self.y = _as_columns(self.y, "y")
         self.validate()
@@ -163,7 +163,7 @@ class Experiment:
 
 
 def _as_columns(values, column: str) -> torch.Tensor:
-    tensor = torch.as_tensor(values, dtype=torch.float64)
+    tensor = torch.as_tensor(values, dtype=torch.float64).detach()  # a record is data, never part of a graph
     if tensor.dim() == 1:
         return tensor[:, None]
     if tensor.dim() != 2:

@@ -92,8 +92,11 @@ class Diagnosis:
                      f"Final model: {final.equation}.")
         else:
             best = next((e for e in self.ranking.entries if e.improvement is not None), None)
-            detail = "" if best is None else (f" (the best, {best.effect}, improves {self.ranking.criterion.upper()} "
-                                              f"by {best.improvement:.1f}; threshold {self.ranking.threshold:g})")
+            detail = "" if best is None else (
+                f" (the best, {best.effect}, improves {self.ranking.criterion.upper()} by {best.improvement:.1f} and "
+                f"the validation mismatch by {100 * (1 - best.refit.nrmse_validation / base.nrmse_validation):.1f} %; "
+                f"needed: {self.ranking.threshold:g} and {100 * self.ranking.min_share:g} %"
+                + "".join(f"; unphysical: {note}" for note in best.unphysical) + ")")
             found = (f"no missing effect found among {len(self.ranking.entries)} candidates{detail}. Validation "
                      f"mismatch {100 * base.nrmse_validation:.2f} %.")
         return f"{found} Chebyshev residual on the final model: {self.hybrids[-1].adequacy.message.rstrip('.')}."
@@ -103,10 +106,12 @@ class Diagnosis:
         return {
             "baseline": {"model": base.name, "equation": base.equation, "nrmse_train": base.nrmse_train,
                          "nrmse_validation": base.nrmse_validation, "criterion": base.criterion,
-                         "parameters": base.parameters},
+                         "parameters": base.parameters, "uncertainty": base.uncertainty,
+                         "identifiability": base.warning},
             "ranking": [e.to_dict() for e in self.ranking.entries],
             "skipped_candidates": self.ranking.skipped,
-            "criterion": {"name": self.ranking.criterion, "threshold": self.ranking.threshold},
+            "criterion": {"name": self.ranking.criterion, "threshold": self.ranking.threshold,
+                          "min_share": self.ranking.min_share},
             "ladder": self.ladder.to_dicts(),
             "where_it_fails": {
                 "residual_autocorrelation_lags_outside": self.residuals.autocorrelation_outside.tolist(),

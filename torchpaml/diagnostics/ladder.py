@@ -2,7 +2,8 @@ r"""The model ladder: physics -> physics + best effect -> ... until no candidate
 
 Each rung runs :func:`~torchpaml.diagnostics.rank_missing_effects` on the current model with the
 candidates not yet added. If it recommends an effect (its criterion beats the current model's by more
-than the threshold), the refitted model becomes the next rung; otherwise the ladder stops.
+than the threshold, its validation mismatch falls by at least ``min_share``, and its parameters are
+physical), the refitted model becomes the next rung; otherwise the ladder stops.
 """
 
 from __future__ import annotations
@@ -36,11 +37,12 @@ class Ladder:
         return self.steps[-1]
 
     def to_dicts(self) -> list[dict]:
-        """One dict per rung: ``{model, equation, added, nrmse_train, nrmse_validation, criterion, parameters}``."""
+        """One dict per rung: ``{model, equation, added, nrmse_train, nrmse_validation, criterion, parameters,
+        uncertainty, identifiability}`` (``uncertainty``: standard errors; ``identifiability``: the warning or ``None``)."""
         return [
             {"model": s.name, "equation": s.equation, "added": None if i == 0 else self.added[i - 1],
              "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
-             "parameters": s.parameters}
+             "parameters": s.parameters, "uncertainty": s.uncertainty, "identifiability": s.warning}
             for i, s in enumerate(self.steps)
         ]
 

@@ -21,8 +21,14 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
    (all parameters learnable as in the physics, plus the effect's) on the training records.
 4. **Rank** by the information criterion on the validation records,
    $\mathrm{BIC} = n \ln(\mathrm{SSE}/n) + k \ln n$ (or $\mathrm{AIC} = n\ln(\mathrm{SSE}/n) + 2k$), $k$ the
-   number of fitted parameters. A candidate is *recommended* when it lowers the criterion below the
-   baseline's by more than ``threshold`` (10: very strong evidence on the Kass-Raftery scale).
+   number of fitted parameters. The best candidate is *recommended* when
+   - it lowers the criterion below the baseline's by more than ``threshold`` (10: very strong
+     evidence on the Kass-Raftery scale);
+   - it lowers the validation mismatch by at least the share ``min_share`` (5 %): on a long record
+     whose residual is not white, a criterion gain alone accepts rungs that change nothing;
+   - its refitted parameters lie in their declared physical ranges (``physical`` of
+     :class:`~torchpaml.parameters.PhysicalParameter`: a Coulomb level or a drag coefficient >= 0, a
+     share of sin x in [0, 1]). An unphysical refit is flagged in its evidence and passed over.
    Candidates outside the shortlist follow, by score, without a refit.
 """
 
@@ -39,6 +45,7 @@ from matplotlib.figure import Figure
 from torchpaml.data import Experiment
 from torchpaml.errors import DataError, SimulationError
 from torchpaml.fit.physics_fit import PhysicsEstimate, fit_physics
+from torchpaml.parameters import unphysical_values
 from torchpaml.physics.base import SecondOrderPhysics
 from torchpaml.simulate.lti import simulate_lti
 from torchpaml.simulate.sensitivity import simulate_record
@@ -59,6 +66,8 @@ class ModelScore:
     nrmse_validation: float
     criterion: float
     model: torch.nn.Module = field(repr=False)
+    uncertainty: dict[str, float] = field(default_factory=dict)
+    warning: str | None = None
 
 
 @dataclass
@@ -75,6 +84,7 @@ class EffectEvidence:
     first_order_strength: float
     refit: ModelScore | None = None
     improvement: float | None = None
+    unphysical: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict:
         refit = self.refit
@@ -85,6 +95,7 @@ class EffectEvidence:
             "nrmse_validation": None if refit is None else refit.nrmse_validation,
             "criterion": None if refit is None else refit.criterion,
             "improvement": self.improvement, "parameters": {} if refit is None else refit.parameters,
+            "uncertainty": {} if refit is None else refit.uncertainty, "unphysical": self.unphysical,
         }
 
 
@@ -97,14 +108,16 @@ class Ranking:
     criterion: str
     threshold: float
     skipped: dict[str, str] = field(default_factory=dict)
+    min_share: float = 0.05
 
     @property
     def recommended(self) -> EffectEvidence | None:
-        """The best candidate if it beats the baseline by more than ``threshold``, else ``None``."""
-        best = self.entries[0] if self.entries else None
-        if best is not None and best.improvement is not None and best.improvement > self.threshold:
-            return best
-        return None
+        """The best physical candidate if it passes ``threshold`` and ``min_share`` (module docstring), else ``None``."""
+        best = next((e for e in self.entries if e.refit is not None and not e.unphysical), None)
+        if best is None or best.improvement is None or best.improvement <= self.threshold:
+            return None
+        share = 1 - best.refit.nrmse_validation / self.baseline.nrmse_validation
+        return best if share >= self.min_share else None
 
     def table(self) -> str:
         """A markdown table: score, validation mismatch, criterion improvement and fitted parameters."""
@@ -120,6 +133,7 @@ class Ranking:
             validation = "not refitted" if refit is None else f"{100 * refit.nrmse_validation:.2f}"
             gain = "" if e.improvement is None else f"{e.improvement:.1f}"
             params = "" if refit is None else ", ".join(f"{k}={v:.4g}" for k, v in refit.parameters.items())
+            params += "".join(f" **unphysical: {note}**" for note in e.unphysical)
             lines.append(f"| {i} | {e.effect} | {e.score:.3f} | {validation} | {gain} | {params} |")
         return "\n".join(lines)
 
@@ -162,7 +176,7 @@ def score_model(
     value = n * torch.log(torch.tensor(sse / n)).item() + penalty
     equation = physics.equation() if hasattr(physics, "equation") else physics.display_name
     return ModelScore(physics.display_name, equation, physics.physical_parameters(), fit.mismatch,
-                      (sse / norm) ** 0.5, value, physics)
+                      (sse / norm) ** 0.5, value, physics, dict(fit.uncertainty.std), fit.uncertainty.warning)
 
 
 class TangentLinear:
@@ -292,6 +306,7 @@ def rank_missing_effects(
     shortlist: int = 3,
     criterion: Literal["bic", "aic"] = "bic",
     threshold: float = 10.0,
+    min_share: float = 0.05,
     probe: float = 1e-4,
     max_nfev: int = 40,
 ) -> Ranking:
@@ -305,6 +320,7 @@ def rank_missing_effects(
         shortlist: how many of the best-scored candidates are refitted (``len(candidates)``: all).
         criterion: ``"bic"`` or ``"aic"``, on the validation records.
         threshold: criterion improvement over the baseline needed to recommend an effect.
+        min_share: relative fall of the validation mismatch needed to recommend an effect.
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
     """
@@ -342,6 +358,7 @@ def rank_missing_effects(
         refit = _refit(extended, strength, entry.first_order_strength, train, max_nfev)
         entry.refit = score_model(extended, refit, validation, criterion)
         entry.improvement = baseline.criterion - entry.refit.criterion
+        entry.unphysical = unphysical_values(extended._rows())
     refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
     rest = [e for e in by_score if e.refit is None]
-    return Ranking(baseline, refitted + rest, criterion, threshold, skipped)
+    return Ranking(baseline, refitted + rest, criterion, threshold, skipped, min_share)

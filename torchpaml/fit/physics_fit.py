@@ -12,6 +12,10 @@ closed bounds on $\rho$ through the parameter's own constraint map (monotone, so
 an interval), and the trust region keeps every iterate strictly inside. An optimum beyond a bound
 ends within about 1e-9 of it (the paper's $\zeta$ capped at 5 for $\alpha = 10$).
 
+The estimate carries its :class:`~torchpaml.fit.uncertainty.Uncertainty` (standard errors, 95 %
+intervals, identifiability), which is also recorded on ``physics`` for ``describe()``; an
+:class:`~torchpaml.fit.uncertainty.IdentifiabilityWarning` names a combination the records do not determine.
+
 Trial steps whose simulation blows up are rejected by the trust region (their residual is inf);
 a start that blows up raises :class:`~torchpaml.errors.SimulationError`.
 """
@@ -20,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 import torch
@@ -27,6 +32,8 @@ from scipy.optimize import least_squares
 
 from torchpaml.data import Experiment
 from torchpaml.errors import SimulationError
+from torchpaml.fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
+from torchpaml.parameters import record_uncertainty
 from torchpaml.simulate.sensitivity import output_jacobian, raw_parameters
 
 __all__ = ["PhysicsEstimate", "fit_physics"]
@@ -40,8 +47,12 @@ class PhysicsEstimate:
         parameters: fitted learnable parameters in physical units.
         mismatch: $\\|y - \\hat y\\| / \\|y\\|$ over all records (a fraction).
         residual: $r = (y - \\hat y)/\\|y\\|$ at the optimum, all records concatenated, (samples,).
-        jacobian: $\\partial r / \\partial\\rho$ at the optimum, (samples, p), columns in the order of ``parameters``.
+        jacobian: $\\partial r / \\partial\\rho$ at the optimum, (samples, unknowns): the columns of ``parameters``
+            in their order, then each record's initial state where it was estimated.
         evaluations: number of simulations (a Jacobian counts as one).
+        uncertainty: standard errors, 95 % intervals and the identifiability check of ``parameters``
+            (and of the initial states, named ``x0[record].state``, where they were estimated).
+        initial_states: each record's initial state (n_state,): rest, or the estimate.
     """
 
     parameters: dict[str, float]
@@ -49,6 +60,8 @@ class PhysicsEstimate:
     residual: torch.Tensor
     jacobian: torch.Tensor
     evaluations: int
+    uncertainty: Uncertainty
+    initial_states: list[torch.Tensor]
 
 
 def _raw_bounds(physics, names: list[str], bounds: dict[str, tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
@@ -78,23 +91,34 @@ def fit_physics(
     records: Experiment | Sequence[Experiment],
     *,
     bounds: dict[str, tuple[float, float]] | None = None,
+    initial_state: Literal["rest", "estimate"] = "rest",
     max_nfev: int = 60,
     **simulate_options,
 ) -> PhysicsEstimate:
     """Fit the learnable physical parameters of ``physics`` in place to the records (module docstring).
 
     Args:
-        physics: the model; its learnable parameters are fitted, the others stay fixed.
-        records: one or more :class:`~torchpaml.data.Experiment`, each simulated from rest.
+        physics: the model; its learnable parameters are fitted, the others stay fixed. With
+            ``initial_state="estimate"`` it may have none (then only the initial states are fitted).
+        records: one or more :class:`~torchpaml.data.Experiment`.
         bounds: ``{name: (lower, upper)}`` in physical units.
+        initial_state: ``"rest"`` (each record starts at rest) or ``"estimate"`` (each record's initial
+            state is fitted too, an unbounded unknown per state; see ``PhysicsEstimate.initial_states``).
         max_nfev: iteration limit of the trust region.
         simulate_options: ``substeps``/``segment`` of the RK4 engine.
     """
+    if initial_state not in ("rest", "estimate"):
+        raise ValueError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
+    estimate_x0 = initial_state == "estimate"
     records = [records] if isinstance(records, Experiment) else list(records)
     names = physics.learnable_names()
-    if not names:
+    if not names and not estimate_x0:
         raise ValueError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")
+    p, n_state = len(names), physics.state_dim
     lower, upper = _raw_bounds(physics, names, bounds or {})
+    if estimate_x0:
+        lower = np.concatenate([lower, np.full(n_state * len(records), -np.inf)])
+        upper = np.concatenate([upper, np.full(n_state * len(records), np.inf)])
     raw = list(raw_parameters(physics, names).values())
     targets = [r.y[None] for r in records]
     scale = float(torch.sqrt(sum(torch.sum(y**2) for y in targets)))
@@ -102,18 +126,31 @@ def fit_physics(
     memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
     warm = [{} for _ in records]  # each record's last solution starts the next Newton solve
 
+    def starts(x: np.ndarray) -> list[torch.Tensor | None]:
+        if not estimate_x0:
+            return [None] * len(records)
+        return [torch.from_numpy(x[p + i * n_state: p + (i + 1) * n_state].copy())[None] for i in range(len(records))]
+
     def evaluate(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Residual (samples,) and Jacobian (samples, p) at raw values ``x``, once per point."""
+        """Residual (samples,) and Jacobian (samples, unknowns) at ``x``, once per point."""
         key = x.tobytes()
         if key not in memo:
             count["simulations"] += 1
             with torch.no_grad():
-                for tensor, value in zip(raw, x, strict=True):
+                for tensor, value in zip(raw, x, strict=False):
                     tensor.copy_(torch.tensor(value, dtype=torch.float64))
-            parts = [output_jacobian(physics, names, r.t - r.t[0], r.u[None], warm=w, **simulate_options)
-                     for r, w in zip(records, warm, strict=True)]
+            parts = [output_jacobian(physics, names, r.t - r.t[0], r.u[None], x0, warm=w, initial_state=estimate_x0,
+                                     **simulate_options)
+                     for r, w, x0 in zip(records, warm, starts(x), strict=True)]
             residual = torch.cat([(y - y_hat).flatten() for y, (y_hat, _) in zip(targets, parts, strict=True)]) / scale
-            jacobian = -torch.cat([J.reshape(-1, len(names)) for _, J in parts]) / scale
+            columns = []
+            for i, (_, J) in enumerate(parts):  # each record's x0 columns go to its own block
+                J = J.reshape(-1, J.shape[-1])
+                block = torch.zeros(len(J), len(x) - p, dtype=torch.float64)
+                if estimate_x0:
+                    block[:, i * n_state:(i + 1) * n_state] = J[:, p:]
+                columns.append(torch.cat([J[:, :p], block], dim=1))
+            jacobian = -torch.cat(columns) / scale
             memo.clear()
             memo[key] = residual.numpy(), jacobian.numpy()
         return memo[key]
@@ -124,12 +161,22 @@ def fit_physics(
         except SimulationError:
             return np.full(sum(y.numel() for y in targets), np.inf)
 
-    start = np.clip(torch.stack([v.detach() for v in raw]).numpy(), lower, upper)
+    rest = [physics.initial_state(1)[0].numpy() for _ in records] if estimate_x0 else []
+    start = np.clip(np.concatenate([torch.stack([v.detach() for v in raw]).numpy() if raw else np.zeros(0), *rest]),
+                    lower, upper)
     evaluate(start)  # raises SimulationError, naming the blow-up, at a bad start
     result = least_squares(fun, start, jac=lambda x: evaluate(x)[1], bounds=(lower, upper), method="trf",
                            x_scale="jac", max_nfev=max_nfev, ftol=1e-10, xtol=1e-10, gtol=1e-10)
     residual, jacobian = evaluate(result.x)
     values = physics.physical_parameters()
-    residual = torch.from_numpy(residual.copy())
+    residual, jacobian = torch.from_numpy(residual.copy()), torch.from_numpy(jacobian.copy())
+    initial_states = [x0[0] if x0 is not None else physics.initial_state(1)[0] for x0 in starts(result.x)]
+    state_names = [f"x0[{r.name}].{s}" for r in records for s in physics.state_names] if estimate_x0 else []
+    slopes = torch.cat([constraint_slopes(physics, names), torch.ones(len(state_names), dtype=torch.float64)])
+    x0_values = torch.cat(initial_states).tolist() if estimate_x0 else []
+    estimates = torch.tensor([values[n] for n in names] + x0_values, dtype=torch.float64)
+    uncertainty = parameter_uncertainty(names + state_names, estimates, residual, jacobian / slopes)
+    record_uncertainty(physics, {n: uncertainty.std[n] for n in names}, uncertainty.interval)
+    warn_if_unidentifiable(uncertainty, physics.display_name)
     return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,
-                           torch.from_numpy(jacobian.copy()), count["simulations"])
+                           jacobian, count["simulations"], uncertainty, initial_states)

@@ -111,6 +111,7 @@ class AbstractPhysics(nn.Module):
             if leaf not in getattr(owner, "_physical", {}):
                 raise ValueError(f"{self.display_name} has no physical parameter {name!r}")
             owner._physical[leaf].constraint.check(name, float(value))
+            getattr(owner, "_uncertainty", {}).pop(leaf, None)  # a fit's uncertainty no longer applies
             with torch.no_grad():
                 setattr(owner, leaf, torch.tensor(float(value), dtype=torch.float64))
         return self

@@ -32,6 +32,8 @@ parameters may arrive batched with shape (rows,), so combine them with signals e
 
 from __future__ import annotations
 
+import math
+
 import torch
 from torch import nn
 
@@ -128,7 +130,8 @@ class PendulumRestoring(AbstractEffect):
 
     def __init__(self, lam: float = 0.0, *, learn=("lam",)):
         super().__init__()
-        register_parameters(self, [PhysicalParameter("lam", lam, "-", Real(), "share of sin x in the restoring term")],
+        register_parameters(self, [PhysicalParameter("lam", lam, "-", Real(), "share of sin x in the restoring term",
+                                                      physical=(0.0, 1.0))],
                             learn)
 
     def applies_to(self, physics):
@@ -149,7 +152,7 @@ class CoulombFriction(AbstractEffect):
     def __init__(self, Fc: float = 0.0, eps: float = 0.01, *, learn=("Fc",)):
         super().__init__()
         register_parameters(self, [
-            PhysicalParameter("Fc", Fc, "m/s^2", Real(), "Coulomb friction level"),
+            PhysicalParameter("Fc", Fc, "m/s^2", Real(), "Coulomb friction level", physical=(0.0, math.inf)),
             PhysicalParameter("eps", eps, "m/s", Positive(), "smoothing velocity of the sign"),
         ], learn)
 
@@ -164,7 +167,8 @@ class QuadraticDamping(AbstractEffect):
 
     def __init__(self, c2: float = 0.0, *, learn=("c2",)):
         super().__init__()
-        register_parameters(self, [PhysicalParameter("c2", c2, "1/m", Real(), "quadratic damping")], learn)
+        register_parameters(self, [PhysicalParameter("c2", c2, "1/m", Real(), "quadratic damping",
+                                                               physical=(0.0, math.inf))], learn)
 
     def force(self, physics, x, v, u):
         return -self.c2 * v * v.abs()

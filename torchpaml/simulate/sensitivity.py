@@ -8,6 +8,9 @@ forward-mode differentiation (``torch.func.jvp``), one pass per parameter:
 * otherwise: Newton runs once (:func:`~torchpaml.simulate.shooting.solve_rk4`), then each pass is a
   single sweep from the converged starts plus the implicit-function correction
   (:meth:`~torchpaml.simulate.shooting.RK4Solution.states`), not a whole simulation.
+
+With ``initial_state=True`` the Jacobian gains one column per state, $\partial\hat y_t/\partial x_{0,i}$,
+by the same passes with the initial state as the tangent's direction.
 """
 
 from __future__ import annotations
@@ -58,7 +61,7 @@ class _Tail(nn.Module):
 
 def output_jacobian(
     physics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
-    warm: dict | None = None, **options
+    warm: dict | None = None, initial_state: bool = False, **options
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Output and its Jacobian in the raw parameters ``names`` (module docstring).
 
@@ -68,23 +71,31 @@ def output_jacobian(
         t: (time,); u: (batch, time, n_input); x0: (batch, n_state), rest if omitted.
         warm: a dict the caller keeps between calls on the same record (a fit's iterations): the RK4
             path stores its converged states under ``"states"`` and starts the next Newton solve from them.
+        initial_state: also differentiate in ``x0``.
         options: ``substeps``/``segment`` of the RK4 engine.
 
     Returns:
-        y (batch, time, n_output) and J (batch, time, n_output, p). Raises
+        y (batch, time, n_output) and J (batch, time, n_output, p), or (..., p + n_state) with
+        ``initial_state``: the parameters' columns first. Raises
         :class:`~torchpaml.errors.SimulationError` if the output blows up.
     """
     x0 = physics.initial_state(u.shape[0]).to(u) if x0 is None else x0
     raw = raw_parameters(physics, names)
     if exact_step(physics, t) is not None:  # the same routing as simulate(method="auto")
         module, arguments = physics, (t, u, x0)
+
+        def from_state(x):
+            return physics(t, u, x)
     else:
         warm = {} if warm is None else warm
         solution = solve_rk4(physics, t, u, x0, guess=warm.get("states"), **options)
         warm["states"] = solution.trajectory
         module, arguments = _Tail(physics, solution, x0, u), ()
         raw = {f"physics.{key}": value for key, value in raw.items()}
-    if not raw:
+
+        def from_state(x):
+            return physics.output(solution.states(physics, x), u)
+    if not raw and not initial_state:
         raise ValueError(f"output_jacobian needs at least one parameter name; {physics.display_name} has "
                          f"{sorted(physics.physical_parameters())}")
     columns, y = [], None
@@ -94,5 +105,9 @@ def output_jacobian(
 
         y, tangent = jvp(output, (value.detach(),), (torch.ones_like(value),))
         columns.append(tangent.detach())
+    if initial_state:
+        for direction in torch.eye(x0.shape[-1], dtype=x0.dtype):
+            y, tangent = jvp(from_state, (x0.detach(),), (direction.expand_as(x0),))
+            columns.append(tangent.detach())
     y = checked_output(y.detach(), t)
     return y, torch.stack(columns, dim=-1)

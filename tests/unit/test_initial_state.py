@@ -1,0 +1,50 @@
+"""Records that do not start at rest: the initial state estimated with the parameters, and on its own."""
+
+import pytest
+import torch
+
+from torchpaml import Experiment, Oscillator, fit_physics
+from torchpaml.physics import CubicStiffness
+from torchpaml.signals import pseudorandom, time_grid
+
+X0 = torch.tensor([[0.8, -1.5]], dtype=torch.float64)
+
+
+def _record(model, seed=0) -> Experiment:
+    t = time_grid(10.0, 0.02)
+    u = pseudorandom(t, 1.0, seed=seed)
+    with torch.no_grad():
+        y = model(t, u, X0)
+    return Experiment(t, u[0], y[0])
+
+
+@pytest.mark.parametrize("nonlinear", [False, True], ids=["exact path", "rk4 engine"])
+def test_the_initial_state_is_estimated_with_the_parameters(nonlinear):
+    truth = Oscillator(0.2, 2.0, 4.0) + CubicStiffness(1.5) if nonlinear else Oscillator(0.2, 2.0, 4.0)
+    record = _record(truth)
+    model = Oscillator(0.4, 1.8, 3.0, learn=("zeta", "omega0", "gain"))
+    model = model + CubicStiffness(1.0) if nonlinear else model
+    fit = fit_physics(model, record, initial_state="estimate")
+    assert fit.initial_states[0] == pytest.approx(X0[0], abs=1e-6)
+    assert fit.parameters["zeta"] == pytest.approx(0.2, abs=1e-6)
+    assert fit.mismatch < 1e-7
+    assert set(fit.uncertainty.std) >= {"x0[experiment].position", "x0[experiment].velocity"}
+
+
+def test_from_rest_the_same_record_leaves_a_transient_error():
+    record = _record(Oscillator(0.2, 2.0, 4.0))
+    fit = fit_physics(Oscillator(0.4, 1.8, 3.0, learn=("zeta", "omega0", "gain")), record)
+    assert fit.mismatch > 1e-3
+    assert fit.initial_states[0].abs().sum() == 0
+
+
+def test_only_the_initial_state_when_no_parameter_is_learnable():
+    truth = Oscillator(0.2, 2.0, 4.0, learn=())
+    fit = fit_physics(truth, _record(truth), initial_state="estimate")
+    assert fit.parameters == {}
+    assert fit.initial_states[0] == pytest.approx(X0[0], abs=1e-8)
+
+
+def test_an_unknown_initial_state_option_is_refused():
+    with pytest.raises(ValueError, match="'rest' or 'estimate'"):
+        fit_physics(Oscillator(), _record(Oscillator()), initial_state="zero")

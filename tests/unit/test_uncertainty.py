@@ -1,0 +1,78 @@
+"""Parameter uncertainty: intervals that cover the truth at their nominal rate, and the identifiability warning."""
+
+import pytest
+import torch
+
+from torchpaml import Experiment, Oscillator, fit_physics
+from torchpaml.fit.uncertainty import IdentifiabilityWarning
+from torchpaml.parameters import PhysicalParameter, Positive, register_parameters
+from torchpaml.physics import AbstractPhysics
+from torchpaml.signals import pseudorandom, time_grid
+
+TRUTH = {"zeta": 0.2, "omega0": 2.0, "gain": 4.0}
+
+
+def _noisy_record(seed: int) -> Experiment:
+    t = time_grid(15.0, 0.05)
+    u = pseudorandom(t, 1.0, seed=seed)
+    generator = torch.Generator().manual_seed(1000 + seed)
+    with torch.no_grad():
+        y = Oscillator(**TRUTH)(t, u)
+    return Experiment(t, u[0], y[0] + 0.05 * torch.randn(y[0].shape, generator=generator), name=f"seed {seed}")
+
+
+def test_95_percent_intervals_cover_the_truth_at_their_nominal_rate():
+    """60 seeds x 3 parameters = 180 intervals; 95 % coverage expects 171, binomial std 2.9.
+
+    Accepting 0.90 to 0.99 leaves about three standard deviations on each side.
+    """
+    covered, total = 0, 0
+    for seed in range(60):
+        model = Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=tuple(TRUTH))
+        fit = fit_physics(model, _noisy_record(seed))
+        for name, (lower, upper) in fit.uncertainty.interval.items():
+            covered += lower <= TRUTH[name] <= upper
+            total += 1
+    assert 0.90 <= covered / total <= 0.99, f"coverage {covered}/{total}"
+
+
+def test_the_standard_error_shrinks_like_one_over_root_n():
+    model = Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=tuple(TRUTH))
+    short = fit_physics(model, _noisy_record(0)).uncertainty.std["zeta"]
+    records = [_noisy_record(seed) for seed in range(4)]
+    long = fit_physics(Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=tuple(TRUTH)), records).uncertainty.std["zeta"]
+    assert long / short == pytest.approx(0.5, rel=0.2)  # 4x the samples
+
+
+def test_describe_shows_the_standard_errors_and_intervals_after_a_fit():
+    model = Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=tuple(TRUTH))
+    fit = fit_physics(model, _noisy_record(0))
+    text = model.describe()
+    assert "± std" in text and "95 % interval" in text
+    assert f"{fit.uncertainty.std['zeta']:.3g}" in text
+    model.assign(zeta=0.3)  # a new value: the fit's uncertainty no longer applies to it
+    assert f"{fit.uncertainty.std['zeta']:.3g}" not in model.describe().splitlines()[2]
+
+
+class ProductGain(AbstractPhysics):
+    """$\\dot x = -x + a b u$: only the product ab is determined by any record."""
+
+    state_names = ("x",)
+
+    def __init__(self):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("a", 1.0, "-", Positive()),
+                                   PhysicalParameter("b", 1.0, "-", Positive())], ("a", "b"))
+
+    def derivative(self, t, x, u):
+        return -x + self.a * self.b * u
+
+    def output(self, x, u):
+        return x
+
+
+def test_a_combination_the_record_cannot_determine_is_named():
+    record = _noisy_record(0)
+    with pytest.warns(IdentifiabilityWarning, match=r"a [+-]1 % with b [+-]1 %.*richly"):
+        fit = fit_physics(ProductGain(), Experiment(record.t, record.u, record.y), max_nfev=5)
+    assert fit.uncertainty.collinearity > 1e3
