@@ -11,6 +11,7 @@ from torchpaml.errors import DataError, DomainError, SimulationError
 from torchpaml.fit import (
     PhysicsEstimate,
     ResidualEstimate,
+    estimate_initial_state,
     fit_chebyshev_hammerstein,
     fit_physics,
     fit_residual,
@@ -47,6 +48,7 @@ __all__ = [
     "draw_mlp",
     "fit_chebyshev_hammerstein",
     "fit_percent",
+    "estimate_initial_state",
     "fit_physics",
     "fit_residual",
     "incompatibility_certificates",

@@ -70,7 +70,8 @@ def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
         ["rank", "effect", "score", "validation %", "improvement", "parameters"],
         [[i, e["effect"], f"{e['score']:.3f}", _pct(e["nrmse_validation"]),
           "" if e["improvement"] is None else f"{e['improvement']:.1f}",
-          ", ".join(f"{k}={v:.4g}" for k, v in e["parameters"].items())]
+          ", ".join(f"{k}={v:.4g}" for k, v in e["parameters"].items())
+          + "".join(f" (unphysical: {note})" for note in e["unphysical"])]
          for i, e in enumerate(content["ranking"], 1)],
     )
     ladder = _table(["step", "model", "train %", "validation %"],
@@ -83,6 +84,9 @@ def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
                      for h in content["hybrid"]])
     images = "".join(f'<h3>{name}</h3><img src="figures/{name}.png" alt="{name}">' for name in figures)
     final = html.escape(diagnosis.ladder.final.model.describe())
+    warning = diagnosis.ladder.final.warning
+    if warning is not None:
+        final += f"</pre><p><b>Identifiability.</b> {html.escape(warning)}</p><pre>"
     return f"""<!doctype html>
 <html><head><meta charset="utf-8"><title>torchpaml diagnosis</title>
 <style>body{{font-family:sans-serif;max-width:1000px;margin:auto}} td,th{{border:1px solid #ccc;padding:3px 6px}}
@@ -92,7 +96,8 @@ table{{border-collapse:collapse}} img{{max-width:100%}}</style></head><body>
 <h2>1. Compare</h2><p>Fitted physics: training mismatch {_pct(base['nrmse_train'])} %, validation
 {_pct(base['nrmse_validation'])} %.</p>
 <h2>2. Which effect is missing</h2>{ranking}
-<h2>3. Model ladder</h2>{ladder}<pre>{final}</pre>
+<h2>3. Model ladder</h2>{ladder}<p>The final model, with standard errors and 95 % intervals from the
+Jacobian at the optimum (valid for a white residual):</p><pre>{final}</pre>
 <h2>4. The Chebyshev residual on top</h2>{hybrid}
 <h2>Figures</h2>{images}
 </body></html>

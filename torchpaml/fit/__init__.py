@@ -2,7 +2,7 @@
 
 from torchpaml.fit.first_order import reestimate_shift
 from torchpaml.fit.output_error import minimize_output_error
-from torchpaml.fit.physics_fit import PhysicsEstimate, fit_physics
+from torchpaml.fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
 from torchpaml.fit.residual_fit import (
     ResidualEstimate,
     fit_chebyshev_hammerstein,
@@ -11,6 +11,7 @@ from torchpaml.fit.residual_fit import (
 
 __all__ = [
     "PhysicsEstimate",
+    "estimate_initial_state",
     "ResidualEstimate",
     "fit_chebyshev_hammerstein",
     "fit_physics",

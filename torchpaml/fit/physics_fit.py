@@ -22,6 +22,7 @@ a start that blows up raises :class:`~torchpaml.errors.SimulationError`.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
@@ -36,7 +37,7 @@ from torchpaml.fit.uncertainty import Uncertainty, constraint_slopes, parameter_
 from torchpaml.parameters import record_uncertainty
 from torchpaml.simulate.sensitivity import output_jacobian, raw_parameters
 
-__all__ = ["PhysicsEstimate", "fit_physics"]
+__all__ = ["PhysicsEstimate", "estimate_initial_state", "fit_physics"]
 
 
 @dataclass
@@ -180,3 +181,17 @@ def fit_physics(
     warn_if_unidentifiable(uncertainty, physics.display_name)
     return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,
                            jacobian, count["simulations"], uncertainty, initial_states)
+
+
+def estimate_initial_state(physics, record: Experiment, samples: int | None = None, **simulate_options) -> torch.Tensor:
+    """The initial state (n_state,) that best explains the first ``samples`` of ``record`` (all if ``None``).
+
+    The parameters stay as they are: a frozen copy of ``physics`` goes through :func:`fit_physics`
+    with ``initial_state="estimate"``. Benchmarks that allow a few samples for initialisation (the
+    Silverbox's first 50) score a model from this state.
+    """
+    frozen = copy.deepcopy(physics)
+    frozen.set_learnable(*frozen.learnable_names(), learn=False)
+    window = record if samples is None else Experiment(record.t[:samples], record.u[:samples], record.y[:samples],
+                                                        record.name)
+    return fit_physics(frozen, window, initial_state="estimate", **simulate_options).initial_states[0]

@@ -14,7 +14,10 @@ physics, coloured noise) makes them too narrow.
 **Identifiability** (Brun, Reichert & Künsch 2001): with the columns of $J$ scaled to unit norm, $\tilde J$,
 the collinearity index is $\gamma = 1/\sqrt{\lambda_{\min}(\tilde J^\top\tilde J)}$. Above
 :data:`COLLINEARITY_LIMIT` a combination of parameters moves the output hardly at all; the
-eigenvector of $\lambda_{\min}$ names it.
+eigenvector of $\lambda_{\min}$ names it. The index does not shrink with more data, so a long record
+can pin a collinear combination down anyway: the warning is given only when a parameter of the
+combination is also loose, its relative standard error above :data:`LOOSE` (or it does not move the
+output at all).
 """
 
 from __future__ import annotations
@@ -26,10 +29,12 @@ from dataclasses import dataclass
 import torch
 from scipy.stats import t as student_t
 
-__all__ = ["COLLINEARITY_LIMIT", "IdentifiabilityWarning", "Uncertainty", "constraint_slopes", "parameter_uncertainty"]
+__all__ = ["COLLINEARITY_LIMIT", "LOOSE", "IdentifiabilityWarning", "Uncertainty", "constraint_slopes", "parameter_uncertainty"]
 
 #: Brun et al. (2001) call a parameter set poorly identifiable above a collinearity index of 10 to 15.
 COLLINEARITY_LIMIT = 15.0
+#: A parameter whose standard error exceeds this share of its value is loosely determined.
+LOOSE = 0.1
 
 
 class IdentifiabilityWarning(UserWarning):
@@ -115,7 +120,9 @@ def parameter_uncertainty(names: list[str], values: torch.Tensor, residual: torc
     if dead:
         warning = (f"{', '.join(dead)} do(es) not change the simulated output at all: the records cannot determine "
                    "it; fix it, or record an experiment that excites it")
-    elif collinearity > COLLINEARITY_LIMIT:
+    elif collinearity > COLLINEARITY_LIMIT and any(
+            abs(float(eigenvectors[i, 0])) > 0.2 and float(std[i]) > LOOSE * abs(float(values[i]))
+            for i in range(len(names))):
         warning = (f"the records do not determine {_combination(names, values, eigenvectors[:, 0], norms)} "
                    f"separately: that combination leaves the output almost unchanged (collinearity index "
                    f"{collinearity:.3g} > {COLLINEARITY_LIMIT:g}). Excite the device more richly (more frequencies "

@@ -42,10 +42,10 @@ def raw_parameters(physics, names: Sequence[str]) -> dict[str, torch.Tensor]:
     return raw
 
 
-def simulate_record(physics, record: Experiment, **options) -> torch.Tensor:
-    """The model's output on one record from rest, (1, time, n_output), without gradients."""
+def simulate_record(physics, record: Experiment, x0: torch.Tensor | None = None, **options) -> torch.Tensor:
+    """The model's output on one record from ``x0`` (n_state,) or rest, (1, time, n_output), without gradients."""
     with torch.no_grad():
-        return physics(record.t - record.t[0], record.u[None], **options)
+        return physics(record.t - record.t[0], record.u[None], None if x0 is None else x0.reshape(1, -1), **options)
 
 
 class _Tail(nn.Module):

@@ -1,0 +1,119 @@
+r"""Silverbox (an electronic Duffing oscillator, measured): diagnose the linear oscillator, add what is found.
+
+    python experiments/silverbox/run.py --out DIR [--data PATH] [--shortlist K]
+
+The official split (``shared/data/silverbox/README.md``): ``train_multisine`` for training, its last
+:data:`VALIDATION_SHARE` held out inside it for validation; ``test_multisine``,
+``test_arrow_no_extrapolation`` and ``test_arrow_full`` for the test. On each test record the first
+:data:`INIT_SAMPLES` samples may set the initial state: the model's state is estimated on them
+(:func:`~torchpaml.fit.estimate_initial_state`) and the remaining samples are scored.
+
+1. The physics: :class:`~torchpaml.physics.Oscillator`, $\ddot y + 2\zeta\omega_0\dot y + \omega_0^2 y = g u$,
+   all three learnable, started from the measured frequency response (:func:`frequency_response_start`).
+2. :func:`~torchpaml.diagnostics.diagnose` with the nine library effects: the ladder adds what the
+   validation asks for; the Chebyshev residual goes on the first and the last rung.
+3. Every rung is scored on the test records.
+
+Writes ``DIR/silverbox.json``::
+
+    {"found": [effects added, in order],
+     "models": [{"model", "equation", "parameters", "uncertainty",
+                 "rmse": {"test_multisine": mV, "test_arrow_no_extrapolation": mV, "test_arrow_full": mV},
+                 "nrmse": {...: RMSE / std(y) over the scored samples}}],   # physics alone first, final model last
+     "hybrid": [the Chebyshev residual on the first and last rung, on validation, with the alarm],
+     "seconds": wall time}
+
+and the diagnosis folder ``DIR/diagnosis/`` (report.html, figures/, tensorboard/, diagnosis.json).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from torchpaml import Experiment, estimate_initial_state
+from torchpaml.diagnostics import diagnose
+from torchpaml.diagnostics.report import write_report
+from torchpaml.physics import Oscillator, default_effects
+from torchpaml.simulate.sensitivity import simulate_record
+
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "silverbox"
+TESTS = ("test_multisine", "test_arrow_no_extrapolation", "test_arrow_full")
+VALIDATION_SHARE = 0.2
+INIT_SAMPLES = 50
+
+
+def frequency_response_start(record: Experiment) -> Oscillator:
+    r"""An :class:`Oscillator` started from the record's empirical transfer function $|H| = |Y/U|$.
+
+    Only the excited bins count (above 0 Hz, $|U|$ above 10 % of its maximum there): $\omega_0$ at the peak of $|H|$,
+    $g = \omega_0^2 |H(0)|$ with $|H(0)|$ the median gain of the lowest excited decade, and
+    $\zeta = |H(0)| / (2 |H(\omega_0)|)$ from the resonance's height.
+    """
+    fs = 1 / record.dt
+    U, Y = np.fft.rfft(record.u[:, 0].numpy()), np.fft.rfft(record.y[:, 0].numpy())
+    f = np.fft.rfftfreq(len(record.t), 1 / fs)
+    excited = (f > 0) & (np.abs(U) > 0.1 * np.abs(U[1:]).max())
+    gain = np.where(excited, np.abs(Y) / np.where(excited, np.abs(U), 1.0), 0.0)
+    peak = int(np.argmax(gain))
+    lowest = f[excited].min()
+    static = float(np.median(gain[excited & (f < 10 * lowest)]))
+    omega0 = 2 * math.pi * f[peak]
+    zeta = min(max(static / (2 * gain[peak]), 1e-3), 1.0)
+    return Oscillator(zeta=zeta, omega0=omega0, gain=static * omega0**2, learn=("zeta", "omega0", "gain"))
+
+
+def split(record: Experiment) -> tuple[Experiment, Experiment]:
+    """The first 1 - VALIDATION_SHARE of ``record`` for training, the rest for validation."""
+    cut = int(round((1 - VALIDATION_SHARE) * len(record.t)))
+    return (Experiment(record.t[:cut], record.u[:cut], record.y[:cut], "train"),
+            Experiment(record.t[cut:], record.u[cut:], record.y[cut:], "validation"))
+
+
+def test_scores(model, tests: dict[str, Experiment]) -> tuple[dict[str, float], dict[str, float]]:
+    """RMSE in mV and NRMSE (RMSE / std y) on each test record, after the first INIT_SAMPLES."""
+    rmse, nrmse = {}, {}
+    for name, record in tests.items():
+        x0 = estimate_initial_state(model, record, INIT_SAMPLES)
+        error = (record.y - simulate_record(model, record, x0)[0])[INIT_SAMPLES:, 0]
+        rmse[name] = 1000 * float(error.square().mean().sqrt())
+        nrmse[name] = float(error.square().mean().sqrt() / record.y[INIT_SAMPLES:, 0].std())
+    return rmse, nrmse
+
+
+def main(argv: list[str] | None = None) -> dict:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--data", type=Path, default=DATA, help=f"the silverbox folder (default {DATA})")
+    parser.add_argument("--shortlist", type=int, default=2, help="candidates refitted per rung (default 2)")
+    args = parser.parse_args(argv)
+    if not (args.data / "train_multisine.csv").is_file():
+        parser.error(f"{args.data} has no train_multisine.csv; point --data at shared/data/silverbox")
+    start = time.perf_counter()
+    train, validation = split(Experiment.from_csv(args.data / "train_multisine.csv"))
+    tests = {name: Experiment.from_csv(args.data / f"{name}.csv") for name in TESTS}
+    diagnosis = diagnose(frequency_response_start(train), default_effects(), train, validation,
+                         shortlist=args.shortlist)
+    write_report(diagnosis, args.out / "diagnosis")
+    models = []
+    for step in diagnosis.ladder.steps:
+        rmse, nrmse = test_scores(step.model, tests)
+        models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
+                       "uncertainty": step.uncertainty, "rmse": rmse, "nrmse": nrmse})
+        print(f"{step.name}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
+    result = {"found": diagnosis.ladder.added, "models": models,
+              "hybrid": [h.to_dict() for h in diagnosis.hybrids], "seconds": time.perf_counter() - start}
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "silverbox.json").write_text(json.dumps(result, indent=2))
+    print(diagnosis.verdict)
+    print(f"wrote {args.out / 'silverbox.json'} in {result['seconds']:.0f} s")
+    return result
+
+
+if __name__ == "__main__":
+    main()
