@@ -66,6 +66,7 @@ def diagnose_command(
     criterion: Literal["bic", "aic"] = "bic",
     threshold: float = 10.0,
     min_share: float = 0.05,
+    initial_state: Literal["rest", "estimate"] = "rest",
 ) -> dict:
     """Diagnose ``physics`` on the records and write the report into ``out``; returns the ``diagnosis.json`` content.
 
@@ -83,6 +84,8 @@ def diagnose_command(
         criterion: ``bic`` or ``aic`` on the validation record.
         threshold: criterion improvement needed to add an effect.
         min_share: relative fall of the validation mismatch needed to add an effect (0.05: 5 %).
+        initial_state: ``rest`` (records start at rest) or ``estimate`` (each record's initial state is
+            fitted: with the parameters on training records, alone on validation records).
     """
     from torchpaml.diagnostics.diagnosis import diagnose
     from torchpaml.diagnostics.report import write_report
@@ -97,7 +100,7 @@ def diagnose_command(
     chosen = _candidates(effects, candidates)
     train, held_out = Experiment.from_csv(data), Experiment.from_csv(validation)
     diagnosis = diagnose(model, chosen, train, held_out, shortlist=shortlist, criterion=criterion,
-                         threshold=threshold, min_share=min_share)
+                         threshold=threshold, min_share=min_share, initial_state=initial_state)
     path = write_report(diagnosis, out)
     print(diagnosis.ranking.table())
     print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")

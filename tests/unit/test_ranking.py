@@ -103,11 +103,12 @@ def test_tangent_linear_outputs_equal_the_simulated_change(duffing, effect):
     base, _, _ = fitted(record)
     extended = base + effect
     name = f"{effect.name}.{effect.strength}"
-    tangent = TangentLinear.of(base, [record])
+    x0 = torch.tensor([0.3, -0.2], dtype=torch.float64)  # not at rest: the baseline trajectory starts from x0
+    tangent = TangentLinear.of(base, [record], [x0])
     extended.assign(**{name: 0.0})
-    simulated_off, linear_off = simulate_record(extended, record).flatten(), tangent.outputs(extended)
+    simulated_off, linear_off = simulate_record(extended, record, x0).flatten(), tangent.outputs(extended)
     extended.assign(**{name: 1e-3})
-    simulated = simulate_record(extended, record).flatten() - simulated_off
+    simulated = simulate_record(extended, record, x0).flatten() - simulated_off
     linear = tangent.outputs(extended) - linear_off
     assert float((simulated - linear).norm() / simulated.norm()) < 0.05
 

@@ -127,7 +127,8 @@ class Diagnosis:
     def figures(self) -> dict[str, Figure]:
         """Name -> figure: ``compare``, ``residual_analysis``, ``error_by_amplitude``, ``ranking``, ``ladder``."""
         record = self.validation[0]
-        outputs = {f"{s.name} ({100 * s.nrmse_validation:.2f} %)": simulate_record(s.model, record)[0]
+        outputs = {f"{s.name} ({100 * s.nrmse_validation:.2f} %)": simulate_record(s.model, record,
+                                                                                      s.validation_states[0])[0]
                    for s in _distinct(self.baseline, self.ladder.final)}
         return {
             "compare": overlay_figure(record.t, record.y[:, 0], outputs, f"validation: {record.name}"),
@@ -171,13 +172,14 @@ def _hybrid(step: ModelScore, train: list[Experiment], validation: list[Experime
     residual = ChebyshevHammerstein(alpha)
     t = train[0].t - train[0].t[0]
     u, y = _stack(train, "training")
-    y_physics = torch.cat([simulate_record(step.model, r) for r in train])
+    y_physics = torch.cat([simulate_record(step.model, r, x0) for r, x0 in zip(train, step.train_states, strict=True)])
     fit_chebyshev_hammerstein(residual, t, u, y - y_physics)
     with torch.no_grad():
         hybrid_train = mismatch(y, y_physics + residual(t, u))
         v_u, v_y = _stack(validation, "validation")
         v_t = validation[0].t - validation[0].t[0]
-        v_physics = torch.cat([simulate_record(step.model, r) for r in validation])
+        v_physics = torch.cat([simulate_record(step.model, r, x0)
+                               for r, x0 in zip(validation, step.validation_states, strict=True)])
         hybrid_validation = mismatch(v_y, v_physics + residual(v_t, v_u))
     whiteness = residual_analysis(u[0, :, 0], (y - y_physics)[0, :, 0])
     white = (len(whiteness.autocorrelation_outside) <= WHITE_SHARE * len(whiteness.lags)
@@ -218,7 +220,7 @@ def diagnose(
     ladder = model_ladder(physics, candidates, train, validation, **ranking_options)
     base = ladder.steps[0]
     record = validation[0]
-    y_model = simulate_record(base.model, record)[0]
+    y_model = simulate_record(base.model, record, base.validation_states[0])[0]
     residuals = residual_analysis(record.u[:, 0], (record.y - y_model)[:, 0])
     by_input = error_by_amplitude(record.u, record.y, y_model)
     by_output = error_by_amplitude(record.y, record.y, y_model)

@@ -44,7 +44,7 @@ from matplotlib.figure import Figure
 
 from torchpaml.data import Experiment
 from torchpaml.errors import DataError, SimulationError
-from torchpaml.fit.physics_fit import PhysicsEstimate, fit_physics
+from torchpaml.fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
 from torchpaml.parameters import unphysical_values
 from torchpaml.physics.base import SecondOrderPhysics
 from torchpaml.simulate.lti import simulate_lti
@@ -68,6 +68,8 @@ class ModelScore:
     model: torch.nn.Module = field(repr=False)
     uncertainty: dict[str, float] = field(default_factory=dict)
     warning: str | None = None
+    train_states: list[torch.Tensor] = field(default_factory=list, repr=False)
+    validation_states: list[torch.Tensor] = field(default_factory=list, repr=False)
 
 
 @dataclass
@@ -163,12 +165,18 @@ def score_model(
     fit: PhysicsEstimate,
     validation: Sequence[Experiment],
     criterion: Literal["bic", "aic"] = "bic",
+    initial_state: Literal["rest", "estimate"] = "rest",
 ) -> ModelScore:
-    """The fitted ``physics``' mismatch on training (from ``fit``) and validation, and its criterion on validation."""
+    """The fitted ``physics``' mismatch on training (from ``fit``) and validation, and its criterion on validation.
+
+    With ``initial_state="estimate"`` each validation record starts from the state that best explains
+    it (:func:`~torchpaml.fit.estimate_initial_state`, the parameters fixed), as MATLAB's ``compare`` does.
+    """
     sse, n, norm = 0.0, 0, 0.0
-    for record in validation:
+    starts = [estimate_initial_state(physics, r) if initial_state == "estimate" else None for r in validation]
+    for record, x0 in zip(validation, starts, strict=True):
         y = record.y[None]
-        sse += float(torch.sum((y - simulate_record(physics, record)) ** 2))
+        sse += float(torch.sum((y - simulate_record(physics, record, x0)) ** 2))
         norm += float(torch.sum(y**2))
         n += y.numel()
     k = len(fit.parameters)
@@ -176,60 +184,61 @@ def score_model(
     value = n * torch.log(torch.tensor(sse / n)).item() + penalty
     equation = physics.equation() if hasattr(physics, "equation") else physics.display_name
     return ModelScore(physics.display_name, equation, physics.physical_parameters(), fit.mismatch,
-                      (sse / norm) ** 0.5, value, physics, dict(fit.uncertainty.std), fit.uncertainty.warning)
+                      (sse / norm) ** 0.5, value, physics, dict(fit.uncertainty.std), fit.uncertainty.warning,
+                      fit.initial_states, [physics.initial_state(1)[0] if x0 is None else x0 for x0 in starts])
 
 
 class TangentLinear:
-    r"""First-order outputs of ``base + effect`` around a *linear* second-order base, by the exact LTI path.
+    r"""First-order outputs of ``base + effect`` around a *linear* base, by the exact LTI path.
 
-    With $\ddot x = a_{\text{base}}(x, v, u) + \Delta a_k(x, v, u)$ and $y = h_k(x)$, the output's change to
-    first order in the strength $k$ is the base's own linear dynamics driven by $\Delta a_k$ evaluated
-    along the baseline trajectory $(x^0, v^0)$, plus $h_k(x^0) - h_0(x^0)$:
+    With $\dot x = A x + B u + \Delta f_k(x, u)$ (the effect's change of the derivative: forces, rates
+    and input maps) and $y = h_k(x, u)$, the output's change to first order in the strength $k$ is the
+    base's own linear dynamics driven by $\Delta f_k$ along the baseline trajectory $x^0$, plus
+    $h_k(x^0) - h_0(x^0)$:
 
-    $$ \delta y = C\,(sI - A)^{-1} e_v\, \Delta a_k(x^0, v^0, u) + h_k(x^0) - h_0(x^0). $$
+    $$ \delta y = C\,(sI - A)^{-1}\, \Delta f_k(x^0, u) + h_k(x^0, u) - h_0(x^0, u). $$
 
-    Input maps enter through $\Delta a_k$ (the base's acceleration at the mapped input). Each probe
-    is one exact simulation (a filter), not a nonlinear one.
+    Each probe is one exact simulation (a filter), not a nonlinear one.
     """
 
-    def __init__(self, base, train: list[Experiment]):
+    def __init__(self, base, train: list[Experiment], initial_states: list[torch.Tensor]):
         A, B, C, _ = (m.detach() for m in base.state_space())
         n = A.shape[0]
         self.base, self.A, self.C = base, A, C
-        self.drive = torch.zeros(n, 1, dtype=A.dtype)
-        self.drive[1, 0] = 1.0  # the acceleration enters the velocity equation
         self.records = []
         with torch.no_grad():
-            for record in train:
+            for record, x0 in zip(train, initial_states, strict=True):
                 h = uniform_step(record.t)
                 u = record.u[None]
-                states = simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, B.shape[1], dtype=A.dtype), h, u)
+                states = simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, B.shape[1], dtype=A.dtype), h, u,
+                                      x0.reshape(1, n))
                 self.records.append((record.t - record.t[0], u, states, h))
 
     @classmethod
-    def of(cls, base, train: list[Experiment]) -> TangentLinear | None:
-        """The tangent-linear model when ``base`` is linear second-order physics on uniform records, else ``None``."""
-        if not isinstance(base, SecondOrderPhysics) or base.state_space() is None:
+    def of(cls, base, train: list[Experiment], initial_states: list[torch.Tensor]) -> TangentLinear | None:
+        """The tangent-linear model when ``base`` is linear physics on uniform records, else ``None``."""
+        if base.state_space() is None:
             return None
         try:
-            return cls(base, train)
+            return cls(base, train, initial_states)
         except DataError:
             return None
 
     def outputs(self, extended) -> torch.Tensor:
         """The first-order outputs of ``extended`` (the base plus effects) on the training records, concatenated."""
         parts = []
+        n = self.A.shape[0]
         with torch.no_grad():
             for t, u, states, h in self.records:
-                x, v, w = states[0, :, 0], states[0, :, 1], u[0, :, 0]
-                extra = extended.acceleration(t, x, v, w) - self.base.acceleration(t, x, v, w)
-                response = simulate_lti(self.A, self.drive, self.C, torch.zeros(1, 1, dtype=self.A.dtype), h,
-                                        extra[None, :, None])
+                x, w = states[0], u[0]
+                extra = extended.derivative(t, x, w) - self.base.derivative(t, x, w)
+                response = simulate_lti(self.A, torch.eye(n, dtype=self.A.dtype), self.C,
+                                        torch.zeros(self.C.shape[0], n, dtype=self.A.dtype), h, extra[None])
                 parts.append((response + extended.output(states, u)).flatten())
         return torch.cat(parts)
 
 
-def _probe(extended, name: str, value: float, train: list[Experiment], scale: float,
+def _probe(extended, name: str, value: float, train: list[Experiment], starts: list[torch.Tensor], scale: float,
            tangent: TangentLinear | None) -> torch.Tensor | None:
     """The normalised outputs on the training records with the strength ``name`` at ``value``; ``None`` if forbidden.
 
@@ -241,7 +250,7 @@ def _probe(extended, name: str, value: float, train: list[Experiment], scale: fl
         return None
     if tangent is not None:
         return tangent.outputs(extended) / scale
-    return torch.cat([simulate_record(extended, r).flatten() for r in train]) / scale
+    return torch.cat([simulate_record(extended, r, x0).flatten() for r, x0 in zip(train, starts, strict=True)]) / scale
 
 
 def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experiment], probe: float,
@@ -253,7 +262,8 @@ def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experime
     of its direction, so a negative coefficient scores 0.
     """
     scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
-    outputs = [_probe(extended, name, value, train, scale, tangent) for value in (0.0, probe, 2 * probe, -probe)]
+    outputs = [_probe(extended, name, value, train, fit.initial_states, scale, tangent)
+               for value in (0.0, probe, 2 * probe, -probe)]
     if outputs[0] is None:
         raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0; "
                          "give it a constraint that allows 0 (e.g. Real())")
@@ -285,16 +295,21 @@ def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experime
     return score, order, probe * (beta if order == 1 else beta ** (1 / order))
 
 
-def _refit(extended, name: str, start: float, train: list[Experiment], max_nfev: int) -> PhysicsEstimate:
-    """Fit ``extended`` from the first-order strength, halving it while the simulation blows up at the start."""
+def _refit(extended, name: str, start: float, train: list[Experiment], max_nfev: int, initial_state: str
+           ) -> PhysicsEstimate:
+    """Fit ``extended`` from the first-order strength, halved while it breaks the constraint or blows up the start."""
     for _ in range(20):
-        extended.assign(**{name: start})
         try:
-            return fit_physics(extended, train, max_nfev=max_nfev)
+            extended.assign(**{name: start})
+        except ValueError:  # beyond the parameter's constraint
+            start /= 2
+            continue
+        try:
+            return fit_physics(extended, train, max_nfev=max_nfev, initial_state=initial_state)
         except SimulationError:
             start /= 2
     extended.assign(**{name: 0.0})
-    return fit_physics(extended, train, max_nfev=max_nfev)
+    return fit_physics(extended, train, max_nfev=max_nfev, initial_state=initial_state)
 
 
 def rank_missing_effects(
@@ -307,6 +322,7 @@ def rank_missing_effects(
     criterion: Literal["bic", "aic"] = "bic",
     threshold: float = 10.0,
     min_share: float = 0.05,
+    initial_state: Literal["rest", "estimate"] = "rest",
     probe: float = 1e-4,
     max_nfev: int = 40,
 ) -> Ranking:
@@ -321,6 +337,8 @@ def rank_missing_effects(
         criterion: ``"bic"`` or ``"aic"``, on the validation records.
         threshold: criterion improvement over the baseline needed to recommend an effect.
         min_share: relative fall of the validation mismatch needed to recommend an effect.
+        initial_state: ``"rest"``, or ``"estimate"``: every fit estimates each training record's initial
+            state (:func:`~torchpaml.fit.fit_physics`), and each validation record starts from its best state.
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
     """
@@ -340,11 +358,12 @@ def rank_missing_effects(
                          + "; ".join(f"{name}: {reason}" for name, reason in skipped.items())
                          + ". Give candidates written for this physics (`candidates:` in a --config file)")
     base = copy.deepcopy(physics)
-    fit = fit_physics(base, train, max_nfev=max_nfev)
-    baseline = score_model(base, fit, validation, criterion)
+    fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state)
+    baseline = score_model(base, fit, validation, criterion, initial_state)
     scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
-    reference = torch.cat([simulate_record(base, r).flatten(1) for r in train], dim=1)[0] / scale
-    tangent = TangentLinear.of(base, train)
+    reference = torch.cat([simulate_record(base, r, x0).flatten(1) for r, x0 in zip(train, fit.initial_states, strict=True)],
+                          dim=1)[0] / scale
+    tangent = TangentLinear.of(base, train, fit.initial_states)
     entries, extended_models = [], {}
     for candidate in candidates:
         extended = copy.deepcopy(base) + copy.deepcopy(candidate)
@@ -355,8 +374,8 @@ def rank_missing_effects(
     by_score = sorted(entries, key=lambda e: -e.score)
     for entry in by_score[:shortlist]:
         extended, strength = extended_models[entry.effect]
-        refit = _refit(extended, strength, entry.first_order_strength, train, max_nfev)
-        entry.refit = score_model(extended, refit, validation, criterion)
+        refit = _refit(extended, strength, entry.first_order_strength, train, max_nfev, initial_state)
+        entry.refit = score_model(extended, refit, validation, criterion, initial_state)
         entry.improvement = baseline.criterion - entry.refit.criterion
         entry.unphysical = unphysical_values(extended._rows())
     refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)

@@ -103,9 +103,12 @@ def parameter_uncertainty(names: list[str], values: torch.Tensor, residual: torc
     norms = torch.linalg.vector_norm(jacobian, dim=0)
     dead = [n for n, norm in zip(names, norms, strict=True) if float(norm) == 0.0]
     scaled = jacobian / torch.where(norms > 0, norms, torch.ones_like(norms))
-    eigenvalues, eigenvectors = torch.linalg.eigh(scaled.T @ scaled)
-    smallest = float(eigenvalues[0])
-    collinearity = math.inf if smallest <= 1e-300 else 1.0 / math.sqrt(smallest)
+    try:
+        eigenvalues, eigenvectors = torch.linalg.eigh(scaled.T @ scaled)
+        smallest = float(eigenvalues[0])
+    except torch.linalg.LinAlgError:  # a non-finite sensitivity: nothing can be said
+        eigenvalues, eigenvectors, smallest = None, torch.eye(len(names), dtype=torch.float64), 0.0
+    collinearity = math.inf if not smallest > 1e-300 else 1.0 / math.sqrt(smallest)
     if dead or collinearity > 1e12:
         covariance = torch.full((len(names), len(names)), math.inf, dtype=torch.float64)
         std = torch.full((len(names),), math.inf, dtype=torch.float64)
@@ -117,7 +120,10 @@ def parameter_uncertainty(names: list[str], values: torch.Tensor, residual: torc
         correlation = covariance / torch.outer(std, std)
     quantile = float(student_t.ppf(0.975, max(dof, 1)))
     warning = None
-    if dead:
+    if eigenvalues is None:
+        warning = ("the output's sensitivities are not finite at the optimum (a square root or a kink at a state "
+                   "of 0?): the uncertainty is unknown; check the physics where the states reach its limits")
+    elif dead:
         warning = (f"{', '.join(dead)} do(es) not change the simulated output at all: the records cannot determine "
                    "it; fix it, or record an experiment that excites it")
     elif collinearity > COLLINEARITY_LIMIT and any(

@@ -77,7 +77,7 @@ class AbstractPhysics(nn.Module):
         return simulate(self, t, u, x0, **options)
 
     def __add__(self, effect):
-        """``physics + effect`` -> :class:`~torchpaml.physics.ComposedModel` (second-order physics only)."""
+        """``physics + effect`` -> :class:`~torchpaml.physics.ComposedModel`; ``TypeError`` where the effect does not apply."""
         from torchpaml.physics.composed import compose
 
         return compose(self, effect)

@@ -1,9 +1,10 @@
-r"""``physics + effect``: second-order physics with extra effects, as one physics model.
+r"""``physics + effect``: any physics with extra effects, as one physics model.
 
-$$ \ddot x = a_{\text{base}}(t, x, v, \tilde u) + \sum_e F_e(x, v, u), \qquad
-   \tilde u = m_{\text{in}}(u), \qquad y = m_{\text{out}}(h_{\text{base}}(x)), $$
+$$ \dot x = f_{\text{base}}(t, x, \tilde u) + \sum_e R_e(x, u) + e_v \sum_e F_e(x, v, u), \qquad
+   \tilde u = m_{\text{in}}(u), \qquad y = m_{\text{out}}(h_{\text{base}}(x, \tilde u)), $$
 
-with the input maps $m_{\text{in}}$ and output maps $m_{\text{out}}$ of the effects applied in the
+with the rates $R_e$ on named state equations, the forces $F_e$ on the velocity equation $e_v$
+(second-order physics only: there $\ddot x = a_{\text{base}} + \sum_e F_e$), the input maps $m_{\text{in}}$ and output maps $m_{\text{out}}$ of the effects applied in the
 order they were added. Parameters keep their names: the base's (``zeta``, ``omega0``, ...) and each
 effect's under its name (``cubic_stiffness.k3``). Composition flattens:
 ``(Oscillator() + CubicStiffness()) + QuadraticDamping()`` is one ``ComposedModel`` with two effects,
@@ -12,10 +13,11 @@ and adding an effect whose name is already present raises ``ValueError``.
 
 from __future__ import annotations
 
+import torch
 from torch import nn
 
 from torchpaml.parameters import describe_parameters, format_table
-from torchpaml.physics.base import SecondOrderPhysics
+from torchpaml.physics.base import AbstractPhysics, SecondOrderPhysics
 from torchpaml.physics.effects import AbstractEffect
 
 __all__ = ["ComposedModel", "compose"]
@@ -30,10 +32,14 @@ def compose(physics, effect: AbstractEffect) -> ComposedModel:
     return ComposedModel(physics, [effect])
 
 
-class ComposedModel(SecondOrderPhysics):
-    """``base`` (second-order physics) with ``effects`` (module docstring). Nonlinear: simulated by an ODE solver."""
+class ComposedModel(AbstractPhysics):
+    """``base`` physics with ``effects`` (module docstring). Nonlinear: simulated by the RK4 engine.
 
-    def __init__(self, base: SecondOrderPhysics, effects: list[AbstractEffect]):
+    Raises ``TypeError`` naming the reason for an effect that does not apply to ``base``
+    (:meth:`~torchpaml.physics.AbstractEffect.applies_to`).
+    """
+
+    def __init__(self, base: AbstractPhysics, effects: list[AbstractEffect]):
         super().__init__()
         for effect in effects:
             reason = effect.applies_to(base)
@@ -48,23 +54,39 @@ class ComposedModel(SecondOrderPhysics):
             raise ValueError("every effect needs a non-empty class attribute `name`")
         self.base = base
         self.effects = nn.ModuleDict({e.name: e for e in effects})
+        self.state_names = base.state_names
+        self.input_dim, self.output_dim = base.input_dim, base.output_dim
+
+    def _mapped(self, u):
+        for effect in self.effects.values():
+            u = effect.input_map(u)
+        return u
+
+    def derivative(self, t, x, u):
+        dx = self.base.derivative(t, x, self._mapped(u))
+        forces = [f for e in self.effects.values() if (f := e.force(self.base, x[..., 0], x[..., 1], u[..., 0])) is not None]
+        if forces:
+            dx = dx + torch.stack([torch.zeros_like(forces[0]), sum(forces)], dim=-1)
+        for effect in self.effects.values():
+            extra = effect.rate(self.base, x, u)
+            if extra is not None:
+                dx = dx + extra
+        return dx
 
     def acceleration(self, t, x, v, u):
-        forced = u
-        for effect in self.effects.values():
-            forced = effect.input_map(forced)
-        a = self.base.acceleration(t, x, v, forced)
-        for effect in self.effects.values():
-            extra = effect.force(self.base, x, v, u)
-            if extra is not None:
-                a = a + extra
-        return a
+        """$\\ddot x$ of a second-order base with the effects, x, v, u of shape (batch,) -> (batch,)."""
+        if not isinstance(self.base, SecondOrderPhysics):
+            raise TypeError(f"acceleration is defined for second-order physics; {self.base.display_name} is not")
+        return self.derivative(t, torch.stack([x, v], dim=-1), u[..., None])[..., 1]
 
     def output(self, x, u):
-        y = self.base.output(x, u).movedim(0, -1)  # batch last: parameters batched as (rows,) broadcast over it
+        y = self.base.output(x, self._mapped(u)).movedim(0, -1)  # batch last: parameters batched as (rows,) broadcast
         for effect in self.effects.values():
             y = effect.output_map(y)
         return y.movedim(-1, 0)
+
+    def initial_state(self, batch):
+        return self.base.initial_state(batch)
 
     # -- names: the base's parameters unprefixed, the effects' under their names ---------------
     def _rows(self) -> list[dict]:

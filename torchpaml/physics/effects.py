@@ -1,8 +1,13 @@
-r"""Physical effects that second-order (mechanical) physics may be missing, composable with ``+``.
+r"""Physical effects that physics may be missing, composable with ``+``.
 
 Each effect is an ``nn.Module`` with named, constrained parameters and a registry ``name``. It
-acts on the composed model $\ddot x = a_{\text{base}}(t, x, v, \tilde u) + \sum_e F_e(x, v, u)$,
-$\tilde u = $ the input maps, $y = $ the output maps of the base output, in one or more ways:
+acts on the composed model (:mod:`~torchpaml.physics.composed`)
+
+$$ \dot x = f_{\text{base}}(t, x, \tilde u) + \sum_e R_e(x, u) + e_v \sum_e F_e(x, v, u), \qquad
+   \tilde u = \text{the input maps of } u, \qquad y = \text{the output maps of } h_{\text{base}}(x, \tilde u), $$
+
+through a *force* $F_e$ on the velocity equation (second-order physics only), a *rate* $R_e$ on
+named state equations, or the input and output maps (any physics). The library's nine:
 
 ==================== ========================================== ===========================
 name                 term                                       parameters (start)
@@ -22,10 +27,14 @@ Every effect starts at zero strength, where the composed model equals the base m
 the point where :func:`rank_missing_effects` measures the output sensitivity to each candidate.
 Saturations are parametrised by the inverse level $s$ so that zero strength is $s = 0$ (no
 saturation) rather than $u_{\max} = \infty$; the physical level $1/s$ is reported alongside.
+Physical ranges (a refit outside is flagged by the ranking): ``lam`` in [0, 1], ``Fc`` and ``c2`` >= 0.
+The forces apply to :class:`~torchpaml.physics.SecondOrderPhysics`; the saturations and the dead
+zone to any physics.
 
 Writing your own: subclass :class:`AbstractEffect`, give it a ``name`` and parameters through
 :func:`~torchpaml.parameters.register_parameters`, and override any of :meth:`AbstractEffect.force`,
-:meth:`AbstractEffect.input_map`, :meth:`AbstractEffect.output_map`. The first declared parameter is the effect's *strength*
+:meth:`AbstractEffect.rate` (with ``states`` naming the equations it needs), :meth:`AbstractEffect.input_map`,
+:meth:`AbstractEffect.output_map`. The first declared parameter is the effect's *strength*
 (:attr:`AbstractEffect.strength`): at strength 0 the effect must leave the model unchanged, and
 parameters may arrive batched with shape (rows,), so combine them with signals elementwise.
 """
@@ -63,15 +72,22 @@ def _tanh_ratio(s: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
 
 
 class AbstractEffect(nn.Module):
-    """An effect added to :class:`~torchpaml.physics.SecondOrderPhysics` (module docstring).
+    """An effect added to physics with ``+`` (module docstring). Override any of the four hooks:
 
-    ``force(physics, x, v, u)`` maps x, v, u (batch,) to an extra acceleration (batch,);
-    ``input_map(u)`` and ``output_map(y)`` transform signals elementwise. Defaults: no force, identity maps.
-    ``physics`` is the base model, for effects that scale with its parameters.
+    * ``force(physics, x, v, u)``: an extra acceleration (batch,) from x, v, u (batch,); second-order
+      (mechanical) physics only, where it enters the velocity equation;
+    * ``rate(physics, x, u)``: an extra term of $\\dot x$, (batch, n_state) from x (batch, n_state) and
+      u (batch, n_input), for any physics; :meth:`on_state` builds it for one named state equation;
+    * ``input_map(u)`` and ``output_map(y)``: elementwise transforms of the signals, for any physics.
+
+    Defaults: no force, no rate, identity maps. ``physics`` is the base model, for effects that scale
+    with its parameters. :meth:`applies_to` says why an effect cannot be added to a physics.
     """
 
     name: str = ""
     equation: str = ""
+    #: the state names the effect's ``rate`` needs in the base physics (checked by :meth:`applies_to`)
+    states: tuple[str, ...] = ()
 
     @property
     def strength(self) -> str:
@@ -82,12 +98,19 @@ class AbstractEffect(nn.Module):
         """Why this effect cannot be added to ``physics`` (the base model), or ``None`` if it can."""
         from torchpaml.physics.base import SecondOrderPhysics
 
-        if not isinstance(physics, SecondOrderPhysics):
-            return (f"effects act on second-order (mechanical) physics with state (position, velocity); "
-                    f"{type(physics).__name__} is not a SecondOrderPhysics")
+        if type(self).force is not AbstractEffect.force and not isinstance(physics, SecondOrderPhysics):
+            return (f"{self.name} is a force, which acts on second-order (mechanical) physics with state (position, "
+                    f"velocity); {physics.display_name} is not a SecondOrderPhysics")
+        missing = [s for s in self.states if s not in physics.state_names]
+        if missing:
+            return (f"{self.name} acts on the state(s) {missing}, which {physics.display_name} does not have "
+                    f"(its states: {list(physics.state_names)})")
         return None
 
     def force(self, physics: nn.Module, x: torch.Tensor, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor | None:
+        return None
+
+    def rate(self, physics: nn.Module, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor | None:
         return None
 
     def input_map(self, u: torch.Tensor) -> torch.Tensor:
@@ -95,6 +118,12 @@ class AbstractEffect(nn.Module):
 
     def output_map(self, y: torch.Tensor) -> torch.Tensor:
         return y
+
+    @staticmethod
+    def on_state(physics: nn.Module, x: torch.Tensor, terms: dict[str, torch.Tensor]) -> torch.Tensor:
+        """A ``rate`` (batch, n_state) that adds ``terms[name]`` (batch,) to the equation of each named state."""
+        columns = [terms.get(name, torch.zeros_like(x[..., 0])) for name in physics.state_names]
+        return torch.stack(columns, dim=-1)
 
 
 class CubicStiffness(AbstractEffect):

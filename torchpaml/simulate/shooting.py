@@ -27,9 +27,12 @@ keeps Newton from diverging when a cubic term dominates.
 
 **Gradients** (reverse and forward mode) come from the implicit function theorem. With the converged
 starts $\xi^*$ held fixed, one differentiable sweep gives $x_{s,k}(\xi^*_s;\theta)$ and $e_s(\theta)$. The
-starts' sensitivity obeys $\dot\xi_{s+1} = G_s\dot\xi_s + \partial_\theta e_s$: the same scan, applied to the
-zero-valued defects $e_s - \mathrm{sg}(e_s)$ ($\mathrm{sg}$: stop-gradient), so that
-$x_{s,k} + T_{s,k}\,\dot\xi_s$ has the converged value and the exact total derivative.
+starts' drift obeys $\delta\xi_{s+1} = G_s\,\delta\xi_s + (e_s(\theta) - \xi^*_{s+1})$, $\delta\xi_0 = x_0 - \xi^*_0$:
+the same scan, applied to the continuity defects (zero at convergence, up to Newton's tolerance), so
+that $x_{s,k} + T_{s,k}\,\delta\xi_s$ has the converged value and the exact total derivative. Being a
+function of values, not a stop-gradient trick, it also serves central differences in $\theta$ and
+$x_0$: one linearised Newton step at the perturbed point, error $O(\delta^2)$, which cancels in the
+central difference to $O(\delta^2)$ as well.
 """
 
 from __future__ import annotations
@@ -224,17 +227,16 @@ class RK4Solution:
     def states(self, physics, x0: torch.Tensor) -> torch.Tensor:
         r"""The record's states (batch, N, n), differentiable through the implicit-function correction.
 
-        One sweep from the converged starts gives $x_{s,k}(\theta)$; the scan of the zero-valued defects
-        $e_s - \mathrm{sg}(e_s)$ gives the starts' drift, and $x + T\,\dot\xi$ carries both (module docstring).
-        Reverse mode (backward) and forward mode (``torch.func.jvp``) both go through it.
+        One sweep from the converged starts gives $x_{s,k}(\theta)$; the scan of the continuity defects
+        gives the starts' drift, and $x + T\,\delta\xi$ carries both (module docstring). Reverse mode
+        (backward), forward mode (``torch.func.jvp``) and central differences all go through it.
         """
         if self.T is None:
             return self.layout.assemble(self.centre)
         with parametrize.cached():
             states = self.layout.sweep(physics, self.starts[None], self.substeps)[0]
-        ends = states[:, :, -1]
-        defects = ends[:, :-1] - ends[:, :-1].detach()
-        drift = linear_recurrence(self.T[:, :-1, -1], defects, x0 - x0.detach())
+        defects = states[:, :-1, -1] - self.starts[:, 1:]
+        drift = linear_recurrence(self.T[:, :-1, -1], defects, x0 - self.starts[:, 0])
         return self.layout.assemble(states + (self.T @ drift[:, :, None, :, None])[..., 0])
 
 

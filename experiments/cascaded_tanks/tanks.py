@@ -1,0 +1,95 @@
+r"""A user's physics for the cascaded tanks, and the effects it may miss, written as a user would.
+
+The physics (linear outflows, every parameter learnable):
+
+$$ \dot x_1 = -k_1 x_1 + k_4 u, \qquad \dot x_2 = k_2 x_1 - k_3 x_2, \qquad y = x_2 , $$
+
+with x1 the upper and x2 the lower level (in sensor volts). The effects:
+
+* :class:`TorricelliOutflow` (``sqrt_outflow_upper``, ``sqrt_outflow_lower``): a tank's outflow
+  through its opening grows as $\sqrt{\text{level}}$ (Bernoulli); a *rate* on the tank's equation and,
+  for the upper tank, the same flow into the lower one;
+* :class:`SensorClip` (``sensor_clip``): the lower tank overflows and the measured level clips at
+  :data:`CLIP_LEVEL` = 10 V (the README counts the clipped samples): an *output map*.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from torchpaml.parameters import Interval, PhysicalParameter, Positive, Real, register_parameters
+from torchpaml.physics import AbstractEffect, AbstractPhysics
+
+__all__ = ["CLIP_LEVEL", "SensorClip", "TorricelliOutflow", "TwoTanks"]
+
+CLIP_LEVEL = 10.0
+
+
+class TwoTanks(AbstractPhysics):
+    """Two cascaded tanks with linear outflows (module docstring). State (batch, 2) = (upper, lower)."""
+
+    state_names = ("upper", "lower")
+
+    def __init__(self, k1=0.01, k2=0.01, k3=0.01, k4=0.01, *, learn=("k1", "k2", "k3", "k4")):
+        super().__init__()
+        register_parameters(self, [
+            PhysicalParameter("k1", k1, "1/s", Positive(), "upper outflow rate"),
+            PhysicalParameter("k2", k2, "1/s", Positive(), "inflow rate of the lower tank"),
+            PhysicalParameter("k3", k3, "1/s", Positive(), "lower outflow rate"),
+            PhysicalParameter("k4", k4, "1/s", Positive(), "pump gain"),
+        ], learn)
+
+    def derivative(self, t, x, u):
+        upper, lower = x[..., 0], x[..., 1]
+        return torch.stack([-self.k1 * upper + self.k4 * u[..., 0], self.k2 * upper - self.k3 * lower], dim=-1)
+
+    def output(self, x, u):
+        return x[..., 1:]
+
+    def state_space(self):
+        zero = torch.zeros((), dtype=torch.float64)
+        A = torch.stack([torch.stack([-self.k1, zero]), torch.stack([self.k2, -self.k3])])
+        B = torch.stack([self.k4, zero]).reshape(2, 1)
+        C = torch.tensor([[0.0, 1.0]], dtype=torch.float64)
+        return A, B, C, torch.zeros(1, 1, dtype=torch.float64)
+
+
+class TorricelliOutflow(AbstractEffect):
+    r"""A tank's outflow $c\sqrt{x}$ on top of the linear one: $\dot x_{\text{tank}} \mathrel{-}= c\sqrt{x_{\text{tank}}}$.
+
+    For ``tank="upper"`` the same flow, scaled by $k_2/k_1$ as in the base, enters the lower tank.
+    Levels below 0 count as 0.
+    """
+
+    states = ("upper", "lower")
+
+    def __init__(self, c: float = 0.0, tank: str = "upper", *, learn=("c",)):
+        super().__init__()
+        if tank not in ("upper", "lower"):
+            raise ValueError(f"tank must be 'upper' or 'lower', got {tank!r}")
+        self.tank, self.name = tank, f"sqrt_outflow_{tank}"
+        self.equation = f"- c*sqrt(x_{tank})"
+        register_parameters(self, [PhysicalParameter("c", c, "V^0.5/s", Real(), "Torricelli outflow coefficient",
+                                                     physical=(0.0, float("inf")))], learn)
+
+    def rate(self, physics, x, u):
+        level = x[..., self.states.index(self.tank)].clamp(min=1e-12)
+        flow = self.c * level.sqrt()
+        terms = {self.tank: -flow}
+        if self.tank == "upper":
+            terms["lower"] = physics.k2 / physics.k1 * flow
+        return self.on_state(physics, x, terms)
+
+
+class SensorClip(AbstractEffect):
+    r"""The measured level clips at 10 V: $y \to y - w\,\max(y - 10, 0)$; $w = 1$ is a hard clip."""
+
+    name, equation = "sensor_clip", "y -> y - w*max(y - 10, 0)"
+
+    def __init__(self, w: float = 0.0, *, learn=("w",)):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("w", w, "-", Interval(-0.5, 1.5), "share of the excess clipped",
+                                                     physical=(0.0, 1.0))], learn)
+
+    def output_map(self, y):
+        return y - self.w * (y - CLIP_LEVEL).clamp(min=0)

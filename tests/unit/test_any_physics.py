@@ -1,0 +1,40 @@
+"""Effects on any physics: rates on named state equations, input and output maps; forces only where they apply."""
+
+import pytest
+import torch
+
+from experiment_modules import load
+from torchpaml import simulate
+from torchpaml.physics import CubicStiffness, OutputSaturation, default_effects
+from torchpaml.signals import pseudorandom, time_grid
+
+tanks = load("cascaded_tanks/tanks.py")
+
+
+def test_a_rate_on_a_named_state_changes_that_equation_and_the_flow_it_feeds():
+    base = tanks.TwoTanks(0.02, 0.02, 0.01, 0.05)
+    model = base + tanks.TorricelliOutflow(0.03, tank="upper")
+    x, u = torch.tensor([[4.0, 2.0]]), torch.tensor([[1.0]])
+    with torch.no_grad():
+        extra = model.derivative(0.0, x, u) - base.derivative(0.0, x, u)
+    assert float(extra[0, 0]) == pytest.approx(-0.03 * 2.0)  # -c sqrt(4)
+    assert float(extra[0, 1]) == pytest.approx(+0.03 * 2.0 * 0.02 / 0.02)  # into the lower tank, scaled k2/k1
+
+
+def test_maps_apply_to_any_physics_and_forces_are_refused_with_the_reason():
+    base = tanks.TwoTanks()
+    t = time_grid(200.0, 4.0)
+    u = 3.0 + pseudorandom(t, 1.0, seed=0)
+    y = simulate(base + OutputSaturation(0.1), t, u)
+    assert bool(torch.all(y.abs() < 10.0))  # ymax = 1/s = 10
+    with pytest.raises(TypeError, match="cubic_stiffness is a force.*not a SecondOrderPhysics"):
+        base + CubicStiffness()
+    with pytest.raises(TypeError, match=r"acts on the state\(s\) \['upper', 'lower'\]"):
+        from torchpaml import Oscillator
+
+        Oscillator() + tanks.TorricelliOutflow(tank="lower")
+
+
+def test_the_default_candidates_that_apply_to_first_order_physics():
+    applicable = {e.name for e in default_effects() if e.applies_to(tanks.TwoTanks()) is None}
+    assert applicable == {"input_saturation", "output_saturation", "dead_zone"}
