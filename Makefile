@@ -2,7 +2,7 @@
 PYTHON ?= python3
 DEMO ?= results/demo
 
-.PHONY: install demo paper test test-all bench contrast
+.PHONY: install demo paper test test-all bench contrast silverbox tanks
 
 install:
 	# torch==2.13.0 first: a CPU build; a bare `torch` requirement would pull a multi-GB CUDA build.
@@ -23,11 +23,12 @@ paper: install
 
 # pytest exits 5 when it collects no test: that is not a failure of the suite.
 # `make test`: the fast lane for every edit (no end-to-end runs). `make test-all`: the whole suite, as CI runs it.
+# Both spread the tests over the machine's two cores (pytest-xdist, `-n 2`).
 test: install
-	$(PYTHON) -m pytest -q -m "not slow"; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
+	$(PYTHON) -m pytest -q -n 2 -m "not slow"; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
 
 test-all: install
-	$(PYTHON) -m pytest -q; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
+	$(PYTHON) -m pytest -q -n 2; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
 
 bench: install
 	$(PYTHON) benchmarks/bench_simulation.py
@@ -36,3 +37,10 @@ bench: install
 
 contrast: install
 	$(PYTHON) experiments/contrast/run.py --out results/contrast
+
+# The measured benchmarks (they need ../shared/data).
+silverbox: install
+	$(PYTHON) experiments/silverbox/run.py --out results/silverbox
+
+tanks: install
+	$(PYTHON) experiments/cascaded_tanks/run.py --out results/cascaded_tanks

@@ -151,7 +151,7 @@ def test_user_physics_and_user_effect_from_a_config(tmp_path):
     (["--fix", "omega0"], None, "is not NAME=NUMBER"),
     (["--data", "bad.csv"], None, "missing column(s) ['y']"),
     (["--data", "absent.csv"], None, "absent.csv"),
-    ([], "physics: {class_path: user_model.Tank}", "is not a SecondOrderPhysics"),
+    (["--effect", "cubic_stiffness"], "physics: {class_path: user_model.Tank}", "cubic_stiffness is a force"),
     ([], "physics: {class_path: user_model.Spring, init_args: {c: -4.0}}", "blew up"),
     (["--out", "train.csv"], None, "is an existing file"),
     (["--shortlist", "-1"], None, "--shortlist must be at least 1"),

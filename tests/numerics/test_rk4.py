@@ -26,24 +26,30 @@ def _relative(a, b):
     return float((a - b).abs().max() / b.abs().max())
 
 
-@pytest.fixture
+@pytest.fixture(scope="module")
 def drive():
     t = time_grid(40.0, 0.1)  # h * omega0 = 0.2
     return t, multisine(t, 1.0, [0.05, 0.1, 0.2, 0.3], seed=0)
 
 
-def test_rk4_agrees_with_dopri5_within_its_error_bound(drive):
+@pytest.fixture(scope="module")
+def reference(drive):
+    """dopri5 at rtol 1e-12 (computed once for the module: it is the slow part)."""
     t, u = drive
     with torch.no_grad():
-        reference = simulate(_duffing(), t, u, method="dopri5", rtol=1e-10, atol=1e-12)
+        return simulate(_duffing(), t, u, method="dopri5", rtol=1e-12, atol=1e-14)
+
+
+def test_rk4_agrees_with_dopri5_within_its_error_bound(drive, reference):
+    t, u = drive
+    with torch.no_grad():
         y = simulate(_duffing(), t, u, method="rk4")
     assert _relative(y, reference) < 2e-4
 
 
-def test_rk4_converges_at_fourth_order(drive):
+def test_rk4_converges_at_fourth_order(drive, reference):
     t, u = drive
     with torch.no_grad():
-        reference = simulate(_duffing(), t, u, method="dopri5", rtol=1e-12, atol=1e-14)
         errors = [_relative(simulate(_duffing(), t, u, method="rk4", substeps=m), reference) for m in (1, 2)]
     assert 12 < errors[0] / errors[1] < 20  # 2^4 = 16
 

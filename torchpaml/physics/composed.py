@@ -64,9 +64,11 @@ class ComposedModel(AbstractPhysics):
 
     def derivative(self, t, x, u):
         dx = self.base.derivative(t, x, self._mapped(u))
-        forces = [f for e in self.effects.values() if (f := e.force(self.base, x[..., 0], x[..., 1], u[..., 0])) is not None]
-        if forces:
-            dx = dx + torch.stack([torch.zeros_like(forces[0]), sum(forces)], dim=-1)
+        if isinstance(self.base, SecondOrderPhysics):  # forces apply there only (AbstractEffect.applies_to)
+            forces = [f for e in self.effects.values()
+                      if (f := e.force(self.base, x[..., 0], x[..., 1], u[..., 0])) is not None]
+            if forces:
+                dx = dx + torch.stack([torch.zeros_like(forces[0]), sum(forces)], dim=-1)
         for effect in self.effects.values():
             extra = effect.rate(self.base, x, u)
             if extra is not None:

@@ -1,0 +1,43 @@
+"""The measured benchmarks (../shared/data): the official splits and metrics, on the linear physics.
+
+Skipped cleanly when ``../shared/data`` is absent. The whole experiments (ladder, test metrics,
+report) run as ``python experiments/{silverbox,cascaded_tanks}/run.py --out DIR``; these tests pin the
+pieces that every number there rests on: loading, the split, the initial-state rule, the metric.
+"""
+
+import pytest
+
+from experiment_modules import load
+from torchpaml import Experiment, fit_physics
+from torchpaml.simulate.sensitivity import simulate_record
+
+silverbox = load("silverbox/run.py")
+cascaded = load("cascaded_tanks/run.py")
+pytestmark = pytest.mark.skipif(not (silverbox.DATA / "train_multisine.csv").is_file()
+                                or not (cascaded.DATA / "estimation.csv").is_file(),
+                                reason="the measured data (../shared/data) is absent")
+
+
+def test_silverbox_linear_oscillator_on_the_official_split():
+    train, validation = silverbox.split(Experiment.from_csv(silverbox.DATA / "train_multisine.csv"))
+    assert len(train.t) + len(validation.t) == 65062  # the official training record, validation inside it
+    physics = silverbox.frequency_response_start(train)
+    assert 2 * 3.1416 * 60 < physics.physical_parameters()["omega0"] < 2 * 3.1416 * 80  # resonance near 69 Hz
+    fit_physics(physics, train)
+    test = Experiment.from_csv(silverbox.DATA / "test_multisine.csv")
+    rmse, nrmse = silverbox.test_scores(physics, {"test_multisine": test})
+    # measured 8.81 mV; the issue's linear reference is 8.8 mV
+    assert 8.0 < rmse["test_multisine"] < 9.5
+    assert 0.10 < nrmse["test_multisine"] < 0.20
+
+
+def test_cascaded_tanks_linear_physics_from_the_estimated_shared_initial_state():
+    tanks = load("cascaded_tanks/tanks.py")
+    estimation = Experiment.from_csv(cascaded.DATA / "estimation.csv")
+    test = Experiment.from_csv(cascaded.DATA / "test.csv")
+    physics = tanks.TwoTanks(0.01, 0.01, 0.01, 0.02, learn=("k1", "k3", "k4"))
+    fit = fit_physics(physics, estimation, initial_state="estimate")
+    x0 = fit.initial_states[0]
+    assert 4.0 < float(x0[1]) < 6.5  # the lower level starts near the first measured sample (5.2 V)
+    error = (test.y - simulate_record(physics, test, x0)[0])[:, 0]
+    assert 0.9 < float(error.square().mean().sqrt()) < 1.4  # measured 1.16 V on the 75 % split, linear
