@@ -1,7 +1,11 @@
+import os
+
 import pytest
 import torch
 
 torch.set_default_dtype(torch.float64)
+if os.environ.get("PYTEST_XDIST_WORKER"):  # `-n 2`: one thread per worker, not two workers of two threads each
+    torch.set_num_threads(1)
 
 
 @pytest.fixture
