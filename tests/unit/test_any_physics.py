@@ -57,3 +57,18 @@ def test_first_order_physics_with_the_default_candidates_runs_and_lists_the_skip
                                     "coulomb_friction", "quadratic_damping", "constant_force"}
     assert all("is a force" in reason for reason in ranking.skipped.values())
     assert ranking.recommended is not None and ranking.recommended.effect == "output_saturation"
+
+
+def test_a_second_order_model_with_effects_still_takes_a_neural_force():
+    from torchpaml import ForceAugmented, MLPForce, Oscillator
+
+    t = time_grid(5.0, 0.05)
+    u = pseudorandom(t, 1.0, seed=0)
+    model = Oscillator() + CubicStiffness(1.0)
+    force = MLPForce()
+    torch.nn.init.zeros_(force.net[-1].weight)
+    torch.nn.init.zeros_(force.net[-1].bias)
+    with torch.no_grad():
+        assert torch.allclose(ForceAugmented(model, force)(t, u), model(t, u), atol=1e-12)
+    with pytest.raises(TypeError, match="second-order"):
+        ForceAugmented(tanks.TwoTanks(), MLPForce())

@@ -78,7 +78,8 @@ class ForceAugmented(SecondOrderPhysics):
 
     def __init__(self, physics: SecondOrderPhysics, force: MLPForce):
         super().__init__()
-        if not isinstance(physics, SecondOrderPhysics):
+        base = getattr(physics, "base", physics)  # physics + effects keeps its base's acceleration
+        if not isinstance(base, SecondOrderPhysics):
             raise TypeError(f"ForceAugmented needs second-order (mechanical) physics, got {type(physics).__name__}")
         self.physics, self.force = physics, force
 
