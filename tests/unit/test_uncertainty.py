@@ -76,3 +76,16 @@ def test_a_combination_the_record_cannot_determine_is_named():
     with pytest.warns(IdentifiabilityWarning, match=r"a [+-]1 % with b [+-]1 %.*richly"):
         fit = fit_physics(ProductGain(), Experiment(record.t, record.u, record.y), max_nfev=5)
     assert fit.uncertainty.collinearity > 1e3
+
+
+def test_a_parameter_driven_to_the_limit_of_its_constraint_is_named_and_the_others_keep_their_errors():
+    from torchpaml.fit.uncertainty import parameter_uncertainty
+
+    generator = torch.Generator().manual_seed(0)
+    jacobian = torch.randn(200, 3, generator=generator, dtype=torch.float64)
+    jacobian[:, 2] = float("inf")  # a positive parameter at 0: its constraint's slope vanished
+    residual = 0.1 * torch.randn(200, generator=generator, dtype=torch.float64)
+    result = parameter_uncertainty(["a", "b", "k"], torch.tensor([1.0, 2.0, 0.0]), residual, jacobian, at_limit=["k"])
+    assert result.std["k"] == float("inf") and result.interval["k"] == (0.0, float("inf"))
+    assert 0 < result.std["a"] < 0.1 and 0 < result.std["b"] < 0.1
+    assert result.warning.startswith("k ended at the limit of its constraint")

@@ -28,7 +28,9 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
      whose residual is not white, a criterion gain alone accepts rungs that change nothing;
    - its refitted parameters lie in their declared physical ranges (``physical`` of
      :class:`~torchpaml.parameters.PhysicalParameter`: a Coulomb level or a drag coefficient >= 0, a
-     share of sin x in [0, 1]). An unphysical refit is flagged in its evidence and passed over.
+     share of sin x in [0, 1]). An unphysical refit is flagged in its evidence and passed over;
+   - its training mismatch is not above the baseline's: the extended model contains the baseline
+     (at strength 0), so a worse training fit is a failed optimisation, not evidence.
    Candidates outside the shortlist follow, by score, without a refit.
 """
 
@@ -115,7 +117,8 @@ class Ranking:
     @property
     def recommended(self) -> EffectEvidence | None:
         """The best physical candidate if it passes ``threshold`` and ``min_share`` (module docstring), else ``None``."""
-        best = next((e for e in self.entries if e.refit is not None and not e.unphysical), None)
+        best = next((e for e in self.entries if e.refit is not None and not e.unphysical
+                     and e.refit.nrmse_train <= self.baseline.nrmse_train * (1 + 1e-6)), None)
         if best is None or best.improvement is None or best.improvement <= self.threshold:
             return None
         share = 1 - best.refit.nrmse_validation / self.baseline.nrmse_validation

@@ -176,7 +176,8 @@ def fit_physics(
     slopes = torch.cat([constraint_slopes(physics, names), torch.ones(len(state_names), dtype=torch.float64)])
     x0_values = torch.cat(initial_states).tolist() if estimate_x0 else []
     estimates = torch.tensor([values[n] for n in names] + x0_values, dtype=torch.float64)
-    uncertainty = parameter_uncertainty(names + state_names, estimates, residual, jacobian / slopes)
+    uncertainty = parameter_uncertainty(names + state_names, estimates, residual, jacobian / slopes,
+                                        at_limit=[n for n, slope in zip(names, slopes, strict=False) if slope == 0])
     record_uncertainty(physics, {n: uncertainty.std[n] for n in names}, uncertainty.interval)
     warn_if_unidentifiable(uncertainty, physics.display_name)
     return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,

@@ -93,7 +93,7 @@ def _combination(names: list[str], values: torch.Tensor, direction: torch.Tensor
 
 
 def parameter_uncertainty(names: list[str], values: torch.Tensor, residual: torch.Tensor,
-                          jacobian: torch.Tensor) -> Uncertainty:
+                          jacobian: torch.Tensor, at_limit: list[str] = ()) -> Uncertainty:
     r"""Uncertainty of the estimates ``values`` (p,) of ``names`` at a least-squares optimum (module docstring).
 
     Args:
@@ -102,7 +102,20 @@ def parameter_uncertainty(names: list[str], values: torch.Tensor, residual: torc
         residual: $r$ at the optimum, (N,).
         jacobian: $\partial r/\partial\theta$ in physical units, (N, p), columns in the order of ``names``
             (raw-coordinate columns divided by :func:`constraint_slopes`).
+        at_limit: parameters at the limit of their constraint (a positive rate driven to 0, where the
+            constraint's slope vanishes): their standard error is undefined (``inf``), the others are
+            computed without them, and the warning names them.
     """
+    if at_limit:
+        keep = [i for i, n in enumerate(names) if n not in at_limit]
+        inner = parameter_uncertainty([names[i] for i in keep], values[keep], residual, jacobian[:, keep])
+        std = {n: inner.std.get(n, math.inf) for n in names}
+        interval = {n: inner.interval.get(n, (float(v), math.inf) if float(v) >= 0 else (-math.inf, float(v)))
+                    for n, v in zip(names, values, strict=True)}
+        note = (f"{', '.join(at_limit)} ended at the limit of its constraint (the data drive it there: the physics "
+                "may not need that term)")
+        return Uncertainty(std, interval, inner.correlation, inner.collinearity,
+                           note if inner.warning is None else f"{note}; {inner.warning}")
     dof = residual.numel() - len(names)
     variance = float(residual @ residual) / max(dof, 1)
     norms = torch.linalg.vector_norm(jacobian, dim=0)
