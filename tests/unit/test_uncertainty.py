@@ -89,3 +89,5 @@ def test_a_parameter_driven_to_the_limit_of_its_constraint_is_named_and_the_othe
     assert result.std["k"] == float("inf") and result.interval["k"] == (0.0, float("inf"))
     assert 0 < result.std["a"] < 0.1 and 0 < result.std["b"] < 0.1
     assert result.warning.startswith("k ended at the limit of its constraint")
+    alone = parameter_uncertainty(["k"], torch.tensor([0.0]), residual, jacobian[:, 2:], at_limit=["k"])
+    assert alone.std == {"k": float("inf")} and alone.warning.startswith("k ended at the limit")

@@ -106,6 +106,8 @@ def parameter_uncertainty(names: list[str], values: torch.Tensor, residual: torc
             constraint's slope vanishes): their standard error is undefined (``inf``), the others are
             computed without them, and the warning names them.
     """
+    if not names:
+        return Uncertainty({}, {}, torch.zeros(0, 0, dtype=torch.float64), 1.0, None)
     if at_limit:
         keep = [i for i, n in enumerate(names) if n not in at_limit]
         inner = parameter_uncertainty([names[i] for i in keep], values[keep], residual, jacobian[:, keep])
