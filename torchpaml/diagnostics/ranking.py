@@ -48,7 +48,6 @@ from torchpaml.data import Experiment
 from torchpaml.errors import DataError, SimulationError
 from torchpaml.fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
 from torchpaml.parameters import unphysical_values
-from torchpaml.physics.base import SecondOrderPhysics
 from torchpaml.simulate.lti import simulate_lti
 from torchpaml.simulate.sensitivity import simulate_record
 from torchpaml.simulate.simulator import uniform_step
