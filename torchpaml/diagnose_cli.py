@@ -6,7 +6,7 @@ the missing one, climbs the model ladder, fits the Chebyshev residual on top and
 (:func:`~torchpaml.diagnostics.report.write_report`). ``torchpaml diagnose --config FILE.yaml`` takes
 the same keys from YAML, where ``physics`` and ``candidates`` may also be user classes
 (``class_path``/``init_args``), so user-defined physics and user-defined effects are diagnosed the
-same way.
+same way. ``--discover`` adds the discovery of a force outside the library (``discovery.json``).
 """
 
 from __future__ import annotations
@@ -25,6 +25,8 @@ __all__ = ["diagnose_command", "run_diagnose"]
 
 #: Repeatable flags, spelled ``--fix NAME=VALUE`` on the command line (jsonargparse appends with ``+``).
 REPEATED = {"--fix": "--fix+", "--effect": "--effects+"}
+#: Switches that may stand alone: ``--discover`` means ``--discover true``.
+SWITCHES = ("--discover",)
 
 
 def _physics(physics: str | AbstractPhysics, fix: list[str] | None) -> AbstractPhysics:
@@ -67,6 +69,7 @@ def diagnose_command(
     threshold: float = 10.0,
     min_share: float = 0.05,
     initial_state: Literal["rest", "estimate"] = "rest",
+    discover: bool = False,
 ) -> dict:
     """Diagnose ``physics`` on the records and write the report into ``out``; returns the ``diagnosis.json`` content.
 
@@ -86,6 +89,8 @@ def diagnose_command(
         min_share: relative fall of the validation mismatch needed to add an effect (0.05: 5 %).
         initial_state: ``rest`` (records start at rest) or ``estimate`` (each record's initial state is
             fitted: with the parameters on training records, alone on validation records).
+        discover: also discover a force outside the library: a neural force in the ODE, then its
+            closed form (``discovery.json``, ``discovered_effect.yaml``; linear second-order physics).
     """
     from torchpaml.diagnostics.diagnosis import diagnose
     from torchpaml.diagnostics.report import write_report
@@ -100,7 +105,7 @@ def diagnose_command(
     chosen = _candidates(effects, candidates)
     train, held_out = Experiment.from_csv(data), Experiment.from_csv(validation)
     diagnosis = diagnose(model, chosen, train, held_out, shortlist=shortlist, criterion=criterion,
-                         threshold=threshold, min_share=min_share, initial_state=initial_state)
+                         threshold=threshold, min_share=min_share, initial_state=initial_state, discover=discover)
     path = write_report(diagnosis, out)
     print(diagnosis.ranking.table())
     print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")
@@ -112,6 +117,8 @@ def run_diagnose(argv: list[str], prog: str = "torchpaml diagnose") -> dict:
     parser = ArgumentParser(prog=prog, description=__doc__)
     parser.add_argument("--config", action=ActionConfigFile, help="YAML file with the arguments below")
     parser.add_function_arguments(diagnose_command)
+    argv = [f"{a}=true" if a in SWITCHES and (i + 1 == len(argv) or argv[i + 1].startswith("--")) else a
+            for i, a in enumerate(argv)]
     argv = [REPEATED.get(a, a) for a in argv]
     argv = [f"{REPEATED[a.partition('=')[0]]}={a.partition('=')[2]}" if a.partition("=")[0] in REPEATED else a
             for a in argv]

@@ -2,6 +2,7 @@
 
 from torchpaml.diagnostics.adequacy import Adequacy, assess_adequacy
 from torchpaml.diagnostics.compare import Comparison, compare
+from torchpaml.diagnostics.discovery import Discovery, discover_missing_force
 from torchpaml.diagnostics.diagnosis import Diagnosis, HybridScore, diagnose
 from torchpaml.diagnostics.harmonics import HarmonicFingerprint, harmonic_fingerprint
 from torchpaml.diagnostics.ladder import Ladder, model_ladder
@@ -24,6 +25,7 @@ __all__ = [
     "AmplitudeBins",
     "Comparison",
     "Diagnosis",
+    "Discovery",
     "EffectEvidence",
     "HarmonicFingerprint",
     "HybridScore",
@@ -35,6 +37,7 @@ __all__ = [
     "assess_adequacy",
     "compare",
     "diagnose",
+    "discover_missing_force",
     "error_by_amplitude",
     "harmonic_fingerprint",
     "model_ladder",

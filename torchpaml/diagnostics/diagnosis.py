@@ -12,7 +12,11 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    inadequacy alarm (:func:`~torchpaml.diagnostics.assess_adequacy`): on wrong physics it cannot
    close the gap and says so; on physics whose training residual is white (at most
    :data:`WHITE_SHARE` of the correlation lags outside the 99 % bounds) it says that there is
-   nothing left to add.
+   nothing left to add;
+4. with ``discover=True``, the **discovery** of a force outside the library
+   (:func:`~torchpaml.diagnostics.discover_missing_force`: a neural force in the ODE, then its closed
+   form, ranked against the library's best effect). It is asked for, not automatic: it trains a
+   network through the simulator, seconds on a record of a thousand samples but minutes on 10^5.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from matplotlib.figure import Figure
 
 from torchpaml.data import Experiment
 from torchpaml.diagnostics.adequacy import Adequacy, assess_adequacy
+from torchpaml.diagnostics.discovery import Discovery, discover_missing_force
 from torchpaml.diagnostics.ladder import Ladder, model_ladder
 from torchpaml.diagnostics.ranking import ModelScore, Ranking
 from torchpaml.diagnostics.residuals import ResidualAnalysis, residual_analysis
@@ -73,6 +78,7 @@ class Diagnosis:
     by_output: AmplitudeBins
     hybrids: list[HybridScore]
     validation: list[Experiment] = field(repr=False)
+    discovery: Discovery | None = None
 
     @property
     def baseline(self) -> ModelScore:
@@ -99,7 +105,13 @@ class Diagnosis:
                 + "".join(f"; unphysical: {note}" for note in best.unphysical) + ")")
             found = (f"no missing effect found among {len(self.ranking.entries)} candidates{detail}. Validation "
                      f"mismatch {100 * base.nrmse_validation:.2f} %.")
-        return f"{found} Chebyshev residual on the final model: {self.hybrids[-1].adequacy.message.rstrip('.')}."
+        verdict = f"{found} Chebyshev residual on the final model: {self.hybrids[-1].adequacy.message.rstrip('.')}."
+        if self.discovery is not None:
+            judged = "recommended" if self.discovery.recommended else "not recommended"
+            verdict += f" Discovered force: {self.discovery.expression} ({judged}: {self.discovery.reason})."
+        elif self.hybrids[-1].adequacy.inadequate:
+            verdict += " To learn the form of what is missing, run the discovery (--discover, or discover=True)."
+        return verdict
 
     def to_dict(self) -> dict:
         base = self.baseline
@@ -121,22 +133,27 @@ class Diagnosis:
                 "by_output_amplitude": _bins(self.by_output),
             },
             "hybrid": [h.to_dict() for h in self.hybrids],
+            "discovery": None if self.discovery is None else self.discovery.to_dict(),
             "verdict": self.verdict,
         }
 
     def figures(self) -> dict[str, Figure]:
-        """Name -> figure: ``compare``, ``residual_analysis``, ``error_by_amplitude``, ``ranking``, ``ladder``."""
+        """Name -> figure: ``compare``, ``residual_analysis``, ``error_by_amplitude``, ``ranking``, ``ladder``,
+        and ``discovery`` when it ran."""
         record = self.validation[0]
         outputs = {f"{s.name} ({100 * s.nrmse_validation:.2f} %)": simulate_record(s.model, record,
                                                                                       s.validation_states[0])[0]
                    for s in _distinct(self.baseline, self.ladder.final)}
-        return {
+        figures = {
             "compare": overlay_figure(record.t, record.y[:, 0], outputs, f"validation: {record.name}"),
             "residual_analysis": self.residuals.figure(),
             "error_by_amplitude": _bins_figure(self.by_input, self.by_output),
             "ranking": self.ranking.figure(),
-            "ladder": self.ladder.figure(),
+            "ladder": self.ladder.figure(None if self.discovery is None else self.discovery.discovered),
         }
+        if self.discovery is not None:
+            figures["discovery"] = self.discovery.figure()
+        return figures
 
 
 def _distinct(first: ModelScore, last: ModelScore) -> list[ModelScore]:
@@ -196,6 +213,7 @@ def diagnose(
     validation: Experiment | Sequence[Experiment],
     *,
     alpha: float | None = None,
+    discover: bool = False,
     **ranking_options,
 ) -> Diagnosis:
     """Run the whole diagnosis (module docstring).
@@ -205,11 +223,13 @@ def diagnose(
         candidates: effects at zero strength.
         train, validation: records.
         alpha: Chebyshev domain of the residual; default 1.05 max |u| over all records.
+        discover: also discover a force outside the library (module docstring, step 4).
         ranking_options: forwarded to :func:`~torchpaml.diagnostics.rank_missing_effects`.
     """
     train = [train] if isinstance(train, Experiment) else list(train)
     validation = [validation] if isinstance(validation, Experiment) else list(validation)
-    most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) for c in candidates),
+    most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
+                                                                 for c in candidates),
                                                 default=0)
     for record in train + validation:  # checked before any fit
         if len(record.t) <= 2 * most:
@@ -226,4 +246,8 @@ def diagnose(
     by_output = error_by_amplitude(record.y, record.y, y_model)
     alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
     hybrids = [_hybrid(step, train, validation, alpha) for step in _distinct(base, ladder.final)]
-    return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation)
+    discovery = None
+    if discover:
+        shared = {k: v for k, v in ranking_options.items() if k in ("criterion", "threshold", "min_share", "initial_state")}
+        discovery = discover_missing_force(ladder.rankings[0], train, validation, **shared)
+    return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation, discovery)

@@ -46,14 +46,21 @@ class Ladder:
             for i, s in enumerate(self.steps)
         ]
 
-    def figure(self) -> Figure:
-        """Validation (and training) mismatch per rung, on a log scale."""
+    def figure(self, discovered: ModelScore | None = None) -> Figure:
+        """Validation (and training) mismatch per rung, on a log scale; ``discovered``: the physics with the
+        discovered force (:func:`~torchpaml.diagnostics.discover_missing_force`), drawn as a rung of its own."""
         fig = Figure(figsize=(7, 4), layout="constrained")
         ax = fig.subplots()
         labels = ["physics", *(f"+ {name}" for name in self.added)]
         steps = range(len(self.steps))
         ax.semilogy(steps, [100 * s.nrmse_validation for s in self.steps], "o-", label="validation")
         ax.semilogy(steps, [100 * s.nrmse_train for s in self.steps], "s--", label="training")
+        if discovered is not None:
+            last = len(self.steps)
+            ax.semilogy([last], [100 * discovered.nrmse_validation], "D", color="tab:red", label="physics + discovered")
+            ax.semilogy([last], [100 * discovered.nrmse_train], "x", color="tab:red")
+            labels.append("physics\n+ discovered")
+            steps = range(last + 1)
         ax.set_xticks(list(steps), labels)
         ax.set_ylabel("mismatch (%)")
         ax.set_title("model ladder")

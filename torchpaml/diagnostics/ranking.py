@@ -18,7 +18,10 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
    ($\beta = (k/\delta)^2$), so $s_c = 0$ when $\beta \le 0$. The first-order strength
    $k_1 = \delta\,\beta^{1/q}$ starts the refit.
 3. **Refit.** The ``shortlist`` best-scored candidates are refitted with the physics
-   (all parameters learnable as in the physics, plus the effect's) on the training records.
+   (all parameters learnable as in the physics, plus the effect's) on the training records. An
+   effect with shape parameters (:attr:`~torchpaml.physics.AbstractEffect.shape`: the width of
+   Coulomb friction's smoothed sign) is refitted once more with them freed, and that refit is kept
+   when it lowers the criterion by more than ``threshold``: the data asks for another shape.
 4. **Rank** by the information criterion on the validation records,
    $\mathrm{BIC} = n \ln(\mathrm{SSE}/n) + k \ln n$ (or $\mathrm{AIC} = n\ln(\mathrm{SSE}/n) + 2k$), $k$ the
    number of fitted parameters. The best candidate is *recommended* when
@@ -53,7 +56,7 @@ from torchpaml.simulate.sensitivity import simulate_record
 from torchpaml.simulate.simulator import uniform_step
 from torchpaml.physics.effects import AbstractEffect
 
-__all__ = ["EffectEvidence", "ModelScore", "Ranking", "rank_missing_effects", "score_model"]
+__all__ = ["EffectEvidence", "ModelScore", "Ranking", "rank_missing_effects", "refit_effect", "score_model"]
 
 
 @dataclass
@@ -297,7 +300,7 @@ def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experime
     return score, order, probe * (beta if order == 1 else beta ** (1 / order))
 
 
-def _refit(extended, name: str, start: float, train: list[Experiment], max_nfev: int, initial_state: str
+def refit_effect(extended, name: str, start: float, train: list[Experiment], max_nfev: int, initial_state: str
            ) -> PhysicsEstimate:
     """Fit ``extended`` from the first-order strength, halved while it breaks the constraint or blows up the start."""
     for _ in range(20):
@@ -312,6 +315,21 @@ def _refit(extended, name: str, start: float, train: list[Experiment], max_nfev:
             start /= 2
     extended.assign(**{name: 0.0})
     return fit_physics(extended, train, max_nfev=max_nfev, initial_state=initial_state)
+
+
+def _free_shape(score: ModelScore, effect: str, train: list[Experiment], validation: list[Experiment], criterion: str,
+                threshold: float, max_nfev: int, initial_state: str) -> ModelScore:
+    """``score``'s model refitted with the effect's shape parameters freed, if that beats it by ``threshold``."""
+    shape = score.model.effects[effect].shape
+    if not shape:
+        return score
+    freed = copy.deepcopy(score.model).set_learnable(*(f"{effect}.{name}" for name in shape))
+    try:
+        estimate = fit_physics(freed, train, max_nfev=max_nfev, initial_state=initial_state)
+    except SimulationError:
+        return score
+    candidate = score_model(freed, estimate, validation, criterion, initial_state)
+    return candidate if score.criterion - candidate.criterion > threshold else score
 
 
 def rank_missing_effects(
@@ -376,10 +394,11 @@ def rank_missing_effects(
     by_score = sorted(entries, key=lambda e: -e.score)
     for entry in by_score[:shortlist]:
         extended, strength = extended_models[entry.effect]
-        refit = _refit(extended, strength, entry.first_order_strength, train, max_nfev, initial_state)
-        entry.refit = score_model(extended, refit, validation, criterion, initial_state)
+        refit = refit_effect(extended, strength, entry.first_order_strength, train, max_nfev, initial_state)
+        score = score_model(extended, refit, validation, criterion, initial_state)
+        entry.refit = _free_shape(score, entry.effect, train, validation, criterion, threshold, max_nfev, initial_state)
         entry.improvement = baseline.criterion - entry.refit.criterion
-        entry.unphysical = unphysical_values(extended._rows())
+        entry.unphysical = unphysical_values(entry.refit.model._rows())
     refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
     rest = [e for e in by_score if e.refit is None]
     return Ranking(baseline, refitted + rest, criterion, threshold, skipped, min_share)

@@ -3,11 +3,14 @@
 Layout of ``out``::
 
     diagnosis.json      Diagnosis.to_dict() (mismatches as fractions)
-    figures/NAME.png    compare, residual_analysis, error_by_amplitude, ranking, ladder
+    discovery.json      Discovery.to_dict(), when the discovery ran
+    discovered_effect.yaml   the discovered force as a config block (``candidates:`` of a --config), when one was found
+    figures/NAME.png    compare, residual_analysis, error_by_amplitude, ranking, ladder (and discovery)
     report.html         the story in one page, showing the figures
     tensorboard/        scalars ladder/nrmse_validation and ladder/nrmse_train (one point per rung),
-                        ranking/score/EFFECT, the figures under diagnose/, the verdict and the final
-                        equation as text
+                        ranking/score/EFFECT, discovery/nrmse_validation/{physics, library_best, neural,
+                        discovered}, the figures under diagnose/, the verdict, the final equation and the
+                        discovered expression as text
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import html
 import json
 from pathlib import Path
 
+import yaml
 from torch.utils.tensorboard import SummaryWriter
 
 from torchpaml.diagnostics.diagnosis import Diagnosis
@@ -35,6 +39,13 @@ def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
     _tensorboard(diagnosis, figures, out / "tensorboard")
     path = out / "diagnosis.json"
     path.write_text(json.dumps(content, indent=2))
+    discovery = diagnosis.discovery
+    if discovery is not None:
+        (out / "discovery.json").write_text(json.dumps(content["discovery"], indent=2))
+        if discovery.effect is not None:
+            (out / "discovered_effect.yaml").write_text(
+                f"# {discovery.expression}\n# add to `candidates:` of a `torchpaml diagnose --config` file\n"
+                + yaml.safe_dump([discovery.effect.to_config()], sort_keys=False))
     return path
 
 
@@ -49,6 +60,11 @@ def _tensorboard(diagnosis: Diagnosis, figures: dict, folder: Path) -> None:
             writer.add_scalar(f"ranking/nrmse_validation/{entry.effect}", entry.refit.nrmse_validation, 0)
     for name, fig in figures.items():
         writer.add_figure(f"diagnose/{name}", fig, 0)
+    if diagnosis.discovery is not None:
+        for key, value in diagnosis.discovery.to_dict()["nrmse_validation"].items():
+            if value is not None:
+                writer.add_scalar(f"discovery/nrmse_validation/{key}", value, 0)
+        writer.add_text("discovery/expression", diagnosis.discovery.expression, 0)
     writer.add_text("diagnose/verdict", diagnosis.verdict, 0)
     writer.add_text("diagnose/final_model", f"    {diagnosis.ladder.final.model.describe()}".replace("\n", "\n    "), 0)
     writer.close()
@@ -62,6 +78,16 @@ def _table(header: list[str], rows: list[list]) -> str:
 
 def _pct(value: float | None) -> str:
     return "—" if value is None else f"{100 * value:.2f}"
+
+
+def _discovery_section(found: dict | None) -> str:
+    if found is None:
+        return ""
+    rows = [[key.replace("_", " "), _pct(value)] for key, value in found["nrmse_validation"].items()]
+    judged = "recommended" if found["recommended"] else "not recommended"
+    return (f"<h2>5. Discovery: a force outside the library</h2><p>Closed form of the learned force: "
+            f"<code>{html.escape(found['expression'])}</code> ({judged}: {html.escape(found['reason'])}). Best "
+            f"library effect: {html.escape(str(found['library_best']))}.</p>" + _table(["model", "validation %"], rows))
 
 
 def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
@@ -82,6 +108,7 @@ def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
                     [[h["model"], _pct(h["physics_nrmse_train"]), _pct(h["nrmse_train"]),
                       _pct(h["physics_nrmse_validation"]), _pct(h["nrmse_validation"]), h["message"]]
                      for h in content["hybrid"]])
+    discovery = _discovery_section(content["discovery"])
     images = "".join(f'<h3>{name}</h3><img src="figures/{name}.png" alt="{name}">' for name in figures)
     final = html.escape(diagnosis.ladder.final.model.describe())
     warning = diagnosis.ladder.final.warning
@@ -99,6 +126,7 @@ table{{border-collapse:collapse}} img{{max-width:100%}}</style></head><body>
 <h2>3. Model ladder</h2>{ladder}<p>The final model, with standard errors and 95 % intervals from the
 Jacobian at the optimum (valid for a white residual):</p><pre>{final}</pre>
 <h2>4. The Chebyshev residual on top</h2>{hybrid}
+{discovery}
 <h2>Figures</h2>{images}
 </body></html>
 """

@@ -2,6 +2,7 @@
 
 from torchpaml.physics.base import AbstractPhysics, SecondOrderPhysics
 from torchpaml.physics.composed import ComposedModel, compose
+from torchpaml.physics.discovered import DiscoveredForce, candidate_terms
 from torchpaml.physics.effects import (
     EFFECTS,
     AbstractEffect,
@@ -38,4 +39,6 @@ __all__ = [
     "InputSaturation",
     "OutputSaturation",
     "DeadZone",
+    "DiscoveredForce",
+    "candidate_terms",
 ]

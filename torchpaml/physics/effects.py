@@ -15,7 +15,7 @@ name                 term                                       parameters (star
 cubic_stiffness      $F = -k_3 x^3$                             k3 (0)
 quadratic_stiffness  $F = -k_2 x^2$                             k2 (0)
 pendulum_restoring   $F = \lambda\,\omega_0^2 (x - \sin x)$: at $\lambda = 1$ the base's $\omega_0^2 x$ becomes $\omega_0^2\sin x$   lam (0)
-coulomb_friction     $F = -F_c \tanh(v/\varepsilon)$ (a smoothed sign)            Fc (0), eps fixed
+coulomb_friction     $F = -F_c \tanh(v/\varepsilon)$ (a smoothed sign)            Fc (0), eps (0.01, shape)
 quadratic_damping    $F = -c_2\, v|v|$                          c2 (0)
 constant_force       $F = f_0$                                  f0 (0)
 input_saturation     $\tilde u = \tanh(s u)/s$ ($= u_{\max}\tanh(u/u_{\max})$, $s = 1/u_{\max}$)   s (0)
@@ -27,6 +27,8 @@ Every effect starts at zero strength, where the composed model equals the base m
 the point where :func:`rank_missing_effects` measures the output sensitivity to each candidate.
 Saturations are parametrised by the inverse level $s$ so that zero strength is $s = 0$ (no
 saturation) rather than $u_{\max} = \infty$; the physical level $1/s$ is reported alongside.
+A *shape* parameter (``eps``: fixed, listed in :attr:`AbstractEffect.shape`) is freed by the ranking
+when that lowers the criterion by more than its threshold.
 Physical ranges (a refit outside is flagged by the ranking): ``lam`` in [0, 1], ``Fc`` and ``c2`` >= 0.
 The forces apply to :class:`~torchpaml.physics.SecondOrderPhysics`; the saturations and the dead
 zone to any physics.
@@ -88,6 +90,9 @@ class AbstractEffect(nn.Module):
     equation: str = ""
     #: the state names the effect's ``rate`` needs in the base physics (checked by :meth:`applies_to`)
     states: tuple[str, ...] = ()
+    #: fixed parameters that set the effect's shape (a smoothing width), which the ranking may free
+    #: when the data asks for it (:func:`~torchpaml.diagnostics.rank_missing_effects`)
+    shape: tuple[str, ...] = ()
 
     @property
     def strength(self) -> str:
@@ -177,6 +182,7 @@ class CoulombFriction(AbstractEffect):
     r"""Dry friction, $F = -F_c\tanh(v/\varepsilon)$; ``eps`` (fixed) is the velocity of the smoothing."""
 
     name, equation = "coulomb_friction", "- Fc*tanh(v/eps)"
+    shape = ("eps",)
 
     def __init__(self, Fc: float = 0.0, eps: float = 0.01, *, learn=("Fc",)):
         super().__init__()

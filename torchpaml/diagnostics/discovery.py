@@ -1,0 +1,276 @@
+r"""Discover a missing force that is not in the library: a neural force in the ODE, then a closed form.
+
+:func:`discover_missing_force` runs on the baseline of a ranking (the ladder's first rung), the
+physics alone at its fitted parameters $\hat\theta$ (linear second-order physics, $\ddot x = a_{\hat\theta}(x, v, u)$, $y = x$):
+
+1. **Neural force** (a universal differential equation, :func:`~torchpaml.fit.fit_neural_force`):
+   $\ddot x = a_{\hat\theta} + \mathrm{MLP}(x, v, u)$, the physics held, fitted by output error.
+   Its trajectory gives the states $x_k, v_k$ that the records do not measure.
+2. **Closed form.** Along that trajectory every library term $\theta_i(x_k, v_k, u_k)$
+   (:func:`~torchpaml.physics.discovered.candidate_terms`) and every physics sensitivity
+   $\partial a/\partial\theta_j$ is passed through the physics' own force-to-output response
+   $\mathcal L = C(sI - A)^{-1}e_v$ (the exact LTI path), so that terms are compared by what they do
+   to the output, where the records can tell them apart (a force at frequencies the physics filters
+   out is invisible, whatever its size). The learned force, seen the same way, is
+   $\mathcal L[\mathrm{MLP}] = \hat y_{\text{neural}} - \hat y_{\text{physics}}$. What the physics'
+   own parameters can produce is projected out (the first-order incompatibility of Kuang & Lin), and
+   sparse regression (:func:`~torchpaml.fit.sparse_regression.select_support`: STLSQ, SINDy's method,
+   plus a forward path) picks the few terms of lowest BIC against the measured residual
+   $y - \hat y_{\text{physics}}$, with the learned force's STLSQ path among the proposals.
+   The regression sees the terms to first order (through the physics' linear response), so it may
+   keep a few small ones that only mop up the nonlinearity's own feedback.
+3. **Refit and rank.** The closed form becomes a :class:`~torchpaml.physics.DiscoveredForce`, refitted
+   by output error with the physics (:func:`~torchpaml.fit.fit_physics`: coefficients, the width of
+   a smoothed sign, and the physics' parameters). Terms whose share of the refitted force along the
+   trajectory is below :data:`PRUNE` are then dropped and the rest refitted, unless that costs more
+   than ``threshold`` of the criterion. The closed form is scored on the validation records like every
+   rung. It is **recommended** when it beats the physics by the ranking's rules (criterion gain above
+   ``threshold``, validation mismatch down by ``min_share``, training mismatch not worse) *and* beats
+   the best library effect's criterion by more than ``threshold``; otherwise the library effect,
+   which has a physical meaning and a name, is preferred.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import torch
+from matplotlib.figure import Figure
+
+from torchpaml.data import Experiment
+from torchpaml.diagnostics.ranking import EffectEvidence, ModelScore, Ranking, refit_effect, score_model
+from torchpaml.fit.neural_force import fit_neural_force
+from torchpaml.fit.sparse_regression import select_support
+from torchpaml.metrics import mismatch
+from torchpaml.physics.base import SecondOrderPhysics
+from torchpaml.physics.discovered import DiscoveredForce, candidate_terms, evaluate_term
+from torchpaml.simulate.lti import simulate_lti
+from torchpaml.simulate.sensitivity import simulate_record
+from torchpaml.simulate.shooting import simulate_rk4
+from torchpaml.simulate.simulator import uniform_step
+
+__all__ = ["Discovery", "discover_missing_force"]
+
+#: Width of the library's smoothed sign tanh(v/eps) in the regression (the Coulomb effect's); the refit frees it.
+SIGN_WIDTH = 0.01
+#: A term of the refitted closed form whose force is below this share of the largest term's is dropped.
+PRUNE = 0.05
+#: Relative central-difference step of the acceleration's parameter sensitivities.
+STEP = 1e-6
+
+
+@dataclass
+class Discovery:
+    """What :func:`discover_missing_force` found (module docstring); :meth:`to_dict` is ``discovery.json``.
+
+    ``effect`` is the refitted closed form (``None`` when the regression kept no term); ``samples``
+    holds x, v, u, the learned force and the closed form's force (with the physics' correction)
+    along the first training record's neural trajectory, for :meth:`figure`.
+    """
+
+    physics: ModelScore
+    library_best: EffectEvidence | None
+    neural_train: float
+    neural_validation: float
+    effect: DiscoveredForce | None
+    discovered: ModelScore | None
+    recommended: bool
+    reason: str
+    samples: dict[str, torch.Tensor] = field(repr=False)
+
+    @property
+    def expression(self) -> str:
+        return "0" if self.effect is None else self.effect.expression()
+
+    def to_dict(self) -> dict:
+        """``{expression, terms[{term, coefficient}], recommended, nrmse_validation{physics, library_best,
+        neural, discovered}, library_best}`` and, beside them, ``reason``, ``nrmse_train``, ``criterion``,
+        ``parameters``, ``uncertainty`` (of the refitted model) and ``effect`` (its config block)."""
+        library = None if self.library_best is None else self.library_best.refit
+        final = self.discovered or self.physics
+        return {
+            "expression": self.expression,
+            "terms": [] if self.effect is None else [{"term": t, "coefficient": c}
+                                                     for t, c in self.effect.terms_and_coefficients()],
+            "recommended": self.recommended,
+            "nrmse_validation": {"physics": self.physics.nrmse_validation,
+                                 "library_best": None if library is None else library.nrmse_validation,
+                                 "neural": self.neural_validation, "discovered": final.nrmse_validation},
+            "library_best": None if self.library_best is None else self.library_best.effect,
+            "reason": self.reason,
+            "nrmse_train": {"physics": self.physics.nrmse_train,
+                            "library_best": None if library is None else library.nrmse_train,
+                            "neural": self.neural_train, "discovered": final.nrmse_train},
+            "criterion": {"physics": self.physics.criterion, "library_best": None if library is None else library.criterion,
+                          "discovered": final.criterion},
+            "parameters": final.parameters,
+            "uncertainty": final.uncertainty,
+            "effect": None if self.effect is None else self.effect.to_config(),
+        }
+
+    def figure(self) -> Figure:
+        """The learned force against x, v and u along the training trajectory, the closed form overlaid."""
+        fig = Figure(figsize=(11, 3.6), layout="constrained")
+        s = self.samples
+        for ax, name in zip(fig.subplots(1, 3, sharey=True), ("x", "v", "u"), strict=True):
+            ax.plot(s[name], s["learned"], ".", ms=3, alpha=0.5, label="learned force (MLP)")
+            ax.plot(s[name], s["closed_form"], ".", ms=3, alpha=0.5, label="closed form + physics correction")
+            ax.set_xlabel(name)
+        fig.axes[0].set_ylabel("force (acceleration units)")
+        fig.axes[0].legend(fontsize=8)
+        fig.suptitle(f"discovered: {self.expression}" + (" (recommended)" if self.recommended else ""))
+        return fig
+
+
+def _sensitivities(physics, names: list[str], x: torch.Tensor, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+    r"""$\partial a/\partial\theta_j$ at the samples, (samples, parameters), by central differences in $\theta_j$."""
+    t = torch.zeros_like(x)
+    columns = []
+    values = physics.physical_parameters()
+    with torch.no_grad():
+        for name in names:
+            step = STEP * max(1.0, abs(values[name]))
+            physics.assign(**{name: values[name] + step})
+            plus = physics.acceleration(t, x, v, u)
+            physics.assign(**{name: values[name] - step})
+            minus = physics.acceleration(t, x, v, u)
+            physics.assign(**{name: values[name]})
+            columns.append((plus - minus) / (2 * step))
+    return torch.stack(columns, dim=1) if columns else torch.zeros(len(x), 0, dtype=x.dtype)
+
+
+def _through_output(physics, record: Experiment, forces: torch.Tensor) -> torch.Tensor:
+    r"""Each column of ``forces`` (samples, k) applied as a force from rest and seen at the output: $\mathcal L[F]$."""
+    A, _, C, _ = (m.detach() for m in physics.state_space())
+    e_v = torch.tensor([[0.0], [1.0]], dtype=A.dtype)
+    responses = simulate_lti(A, e_v, C, torch.zeros(C.shape[0], 1, dtype=A.dtype), uniform_step(record.t),
+                             forces.T[:, :, None])
+    return responses[:, :, 0].T
+
+
+def _check(physics) -> None:
+    if not isinstance(physics, SecondOrderPhysics) or physics.state_space() is None:
+        raise ValueError(
+            f"discovery needs linear second-order physics (a SecondOrderPhysics with state_space()), got "
+            f"{getattr(physics, 'display_name', type(physics).__name__)}: the learned force is compared with the "
+            "library terms through the physics' own force-to-output response. Diagnose the linear part, or add "
+            "effects from the library")
+
+
+def discover_missing_force(
+    ranking: Ranking,
+    train: Sequence[Experiment],
+    validation: Sequence[Experiment],
+    *,
+    criterion: Literal["bic", "aic"] = "bic",
+    threshold: float = 10.0,
+    min_share: float = 0.05,
+    initial_state: Literal["rest", "estimate"] = "rest",
+    max_terms: int = 4,
+    max_iter: int = 60,
+    max_nfev: int = 40,
+    seed: int = 0,
+) -> Discovery:
+    """Discover the force missing from the ladder's physics (module docstring).
+
+    Args:
+        ranking: the library's ranking on the physics (:func:`~torchpaml.diagnostics.rank_missing_effects`,
+            the ladder's first): its baseline is the fitted physics, its best refitted physical entry the
+            library's best effect.
+        train, validation: the records it was made on.
+        criterion, threshold, min_share, initial_state: as in :func:`~torchpaml.diagnostics.rank_missing_effects`.
+        max_terms: most terms in the closed form.
+        max_iter: L-BFGS iterations of the neural force.
+        max_nfev: iteration limit of the closed form's refit.
+        seed: seed of the network's initial weights.
+    """
+    baseline = ranking.baseline
+    physics = baseline.model
+    _check(physics)
+    for record in train:
+        uniform_step(record.t)  # the force-to-output response is the exact (uniform-grid) path
+    neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed)
+    with torch.no_grad():
+        neural_validation = mismatch(torch.cat([r.y for r in validation]),
+                                     torch.cat([simulate_record(neural.model, r, x0)[0]
+                                                for r, x0 in zip(validation, baseline.validation_states, strict=True)]))
+    terms = candidate_terms()
+    names = physics.learnable_names()
+    parts = {key: [] for key in ("library", "sensitivity", "learned", "measured")}
+    samples = {}
+    with torch.no_grad():
+        for record, x0 in zip(train, baseline.train_states, strict=True):
+            states = simulate_rk4(neural.model, record.t - record.t[0], record.u[None], x0.reshape(1, -1))[0]
+            x, v, u = states[:, 0], states[:, 1], record.u[:, 0]
+            library = torch.stack([evaluate_term(term, x, v, u, SIGN_WIDTH) for term in terms], dim=1)
+            sensitivity = _sensitivities(physics, names, x, v, u)
+            learned = neural.force(x, v, u)
+            parts["library"].append(_through_output(physics, record, library))
+            parts["sensitivity"].append(_through_output(physics, record, sensitivity))
+            parts["learned"].append(_through_output(physics, record, learned[:, None])[:, 0])
+            parts["measured"].append((record.y - simulate_record(physics, record, x0)[0])[:, 0])
+            if not samples:
+                samples = {"x": x, "v": v, "u": u, "learned": learned, "library": library, "sensitivity": sensitivity}
+    library, sensitivity, learned, measured = (torch.cat(parts[k]) for k in ("library", "sensitivity", "learned",
+                                                                               "measured"))
+    Q = torch.linalg.qr(sensitivity).Q if sensitivity.shape[1] else sensitivity
+
+    def projected(M: torch.Tensor) -> torch.Tensor:
+        return M - Q @ (Q.T @ M)
+
+    columns = projected(library)
+    norms = columns.norm(dim=0)
+    usable = [i for i in range(len(terms)) if norms[i] > 1e-6 * library[:, i].norm()]  # the rest the physics makes
+    unit = columns[:, usable] / norms[usable]
+    support, _ = select_support(unit, projected(measured[:, None])[:, 0], [projected(learned[:, None])[:, 0]],
+                                max_terms)
+    chosen = [usable[i] for i in support]
+    library_best = next((e for e in ranking.entries if e.refit is not None and not e.unphysical), None)
+    if not chosen:
+        correction = torch.linalg.lstsq(sensitivity, measured[:, None]).solution[:, 0] if names else torch.zeros(0)
+        samples["closed_form"] = samples["sensitivity"] @ correction
+        return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
+                         "the sparse regression kept no term: nothing is missing that the physics cannot make", samples)
+    joint = torch.linalg.lstsq(torch.cat([sensitivity, library[:, chosen]], dim=1), measured[:, None]).solution[:, 0]
+    correction, coefficients = joint[: len(names)], joint[len(names):]
+    samples["closed_form"] = samples["library"][:, chosen] @ coefficients + samples["sensitivity"] @ correction
+
+    def refit(selected: list[int], values: list[float]) -> ModelScore:
+        effect = DiscoveredForce([terms[i] for i in selected], values, eps=SIGN_WIDTH)
+        extended = copy.deepcopy(physics) + effect
+        estimate = refit_effect(extended, "discovered.gain", 1.0, train, max_nfev, initial_state)
+        return score_model(extended, estimate, validation, criterion, initial_state)
+
+    discovered = refit(chosen, coefficients.tolist())
+    fitted = discovered.model.effects["discovered"].terms_and_coefficients()
+    forces = (samples["library"][:, chosen] * torch.tensor([c for _, c in fitted])).norm(dim=0)
+    kept = [i for i, size in zip(chosen, forces.tolist(), strict=True) if size >= PRUNE * float(forces.max())]
+    if kept != chosen:
+        pruned = refit(kept, [c for i, (_, c) in zip(chosen, fitted, strict=True) if i in kept])
+        if pruned.criterion <= discovered.criterion + threshold:
+            discovered = pruned
+    recommended, reason = _judge(baseline, library_best, discovered, threshold, min_share)
+    return Discovery(baseline, library_best, neural.mismatch, neural_validation, discovered.model.effects["discovered"],
+                     discovered, recommended, reason, samples)
+
+
+def _judge(physics: ModelScore, library: EffectEvidence | None, discovered: ModelScore, threshold: float,
+           min_share: float) -> tuple[bool, str]:
+    """Whether the closed form is recommended over the physics and the best library effect, and why."""
+    gain = physics.criterion - discovered.criterion
+    share = 1 - discovered.nrmse_validation / physics.nrmse_validation
+    if discovered.nrmse_train > physics.nrmse_train * (1 + 1e-6):
+        return False, "its refit ended above the physics' training mismatch (a failed optimisation)"
+    if gain <= threshold or share < min_share:
+        return False, (f"it improves the criterion by {gain:.1f} (needed {threshold:g}) and the validation mismatch "
+                       f"by {100 * share:.1f} % (needed {100 * min_share:g} %)")
+    if library is not None:
+        margin = library.refit.criterion - discovered.criterion
+        if margin <= threshold:
+            return False, (f"the library effect {library.effect} explains the records as well (criterion "
+                           f"{margin:+.1f} against it, needed more than {threshold:g}): the named effect is preferred")
+        return True, f"it beats the physics by {gain:.1f} and the best library effect ({library.effect}) by {margin:.1f}"
+    return True, f"it beats the physics by {gain:.1f}; no library effect was refitted"

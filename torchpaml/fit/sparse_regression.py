@@ -1,0 +1,85 @@
+r"""Sparse regression: which few columns of a library explain a target, chosen by BIC.
+
+For $b \approx A\xi$ with the columns of $A$ (samples, terms) scaled to unit norm:
+
+* :func:`stlsq`: sequentially thresholded least squares (SINDy; Brunton, Proctor & Kutz 2016):
+  solve least squares on the active columns, drop those with $|\xi_i| < \lambda\|b\|$, repeat until
+  the active set stops changing. With unit columns, $|\xi_i|$ is the size of the term's contribution.
+* :func:`forward_selection`: add, one at a time, the column that lowers the residual most.
+* :func:`select_support`: the candidate supports of both (STLSQ over a grid of $\lambda$ on each
+  target given, the forward path's prefixes), each with at most ``max_terms`` columns, scored by
+  $\mathrm{BIC} = n\ln(\mathrm{SSE}/n) + k\ln n$ against the *measured* target, whose residual
+  is noise; the lowest wins, the empty support included.
+
+Plain least squares (``torch.linalg.lstsq``) does the work: the problems are tens of columns, so
+PySINDy would add a dependency for a loop of ten lines.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import torch
+
+__all__ = ["forward_selection", "select_support", "stlsq"]
+
+#: Thresholds $\lambda$ (shares of $\|b\|$) that :func:`select_support` sweeps.
+THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.6, 0.8)
+
+
+def _solve(A: torch.Tensor, b: torch.Tensor, support: Sequence[int]) -> tuple[torch.Tensor, float]:
+    """Least-squares coefficients on ``support`` and the sum of squared residuals."""
+    if not support:
+        return torch.zeros(0, dtype=b.dtype), float(b @ b)
+    columns = A[:, list(support)]
+    xi = torch.linalg.lstsq(columns, b[:, None]).solution[:, 0]
+    residual = b - columns @ xi
+    return xi, float(residual @ residual)
+
+
+def stlsq(A: torch.Tensor, b: torch.Tensor, threshold: float, max_iter: int = 30) -> list[int]:
+    """STLSQ (module docstring) on unit columns A (samples, terms), b (samples,); returns the support."""
+    active = list(range(A.shape[1]))
+    for _ in range(max_iter):
+        xi, _ = _solve(A, b, active)
+        kept = [i for i, c in zip(active, xi.tolist(), strict=True) if abs(c) >= threshold * float(b.norm())]
+        if kept == active:
+            break
+        active = kept
+    return active
+
+
+def forward_selection(A: torch.Tensor, b: torch.Tensor, max_terms: int) -> list[list[int]]:
+    """The greedy path: ``[[i1], [i1, i2], ...]``, each step adding the column that lowers the SSE most."""
+    chosen, path = [], []
+    for _ in range(min(max_terms, A.shape[1])):
+        remaining = [j for j in range(A.shape[1]) if j not in chosen]
+        best = min(remaining, key=lambda j: _solve(A, b, chosen + [j])[1])
+        chosen = chosen + [best]
+        path.append(sorted(chosen))
+    return path
+
+
+def bic(sse: float, samples: int, terms: int) -> float:
+    """$n\\ln(\\mathrm{SSE}/n) + k\\ln n$."""
+    return samples * math.log(max(sse, 1e-300) / samples) + terms * math.log(samples)
+
+
+def select_support(A: torch.Tensor, measured: torch.Tensor, guides: Sequence[torch.Tensor] = (),
+                   max_terms: int = 4) -> tuple[list[int], torch.Tensor]:
+    """The support of lowest BIC against ``measured`` (module docstring) and its coefficients.
+
+    Args:
+        A: library columns of unit norm, (samples, terms).
+        measured: the target whose residual is noise (scores the supports), (samples,).
+        guides: further targets whose STLSQ paths propose supports (a denoised view of the same thing).
+        max_terms: largest support considered.
+    """
+    supports = {tuple(s) for s in forward_selection(A, measured, max_terms)} | {()}
+    for target in (measured, *guides):
+        supports |= {tuple(stlsq(A, target, lam)) for lam in THRESHOLDS}
+    n = len(measured)
+    scored = [(bic(_solve(A, measured, s)[1], n, len(s)), s) for s in supports if len(s) <= max_terms]
+    _, best = min(scored)
+    return list(best), _solve(A, measured, best)[0]
