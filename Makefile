@@ -2,7 +2,7 @@
 PYTHON ?= python3
 DEMO ?= results/demo
 
-.PHONY: install demo paper test test-all bench contrast silverbox tanks
+.PHONY: install demo paper test test-all bench contrast silverbox tanks discovery
 
 install:
 	# torch==2.13.0 first: a CPU build; a bare `torch` requirement would pull a multi-GB CUDA build.
@@ -37,6 +37,10 @@ bench: install
 
 contrast: install
 	$(PYTHON) experiments/contrast/run.py --out results/contrast
+
+# Discovery of forces outside the library, on simulated records (the README's table).
+discovery: install
+	$(PYTHON) experiments/discovery/run.py --out results/discovery
 
 # The measured benchmarks (they need ../shared/data).
 silverbox: install

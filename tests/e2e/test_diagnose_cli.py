@@ -9,6 +9,7 @@ import textwrap
 import pytest
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
+from torchpaml.cli import main
 from torchpaml.physics import EFFECTS
 
 FIGURES = ("compare", "residual_analysis", "error_by_amplitude", "ranking", "ladder")
@@ -86,7 +87,7 @@ def measured(tmp_path_factory):
 
 def test_the_contract_run_writes_json_figures_html_and_tensorboard(measured):
     done = run("--data", "train.csv", "--validation", "val.csv", "--physics", "oscillator", "--fix", "omega0=2.0",
-               "--out", "out", cwd=measured)
+               "--out", "out", "--discover", cwd=measured)
     assert done.returncode == 0, done.stderr
     out = measured / "out"
     report = json.loads((out / "diagnosis.json").read_text())
@@ -110,6 +111,18 @@ def test_the_contract_run_writes_json_figures_html_and_tensorboard(measured):
     series = [e.value for e in events.Scalars("ladder/nrmse_validation")]
     assert series == pytest.approx([step["nrmse_validation"] for step in ladder], rel=1e-6)
     assert {f"diagnose/{name}" for name in FIGURES} <= set(events.Tags()["images"])
+    # --discover: the closed form of the learned force is the library's v|v|, which is preferred to it
+    discovery = json.loads((out / "discovery.json").read_text())
+    assert {"expression", "terms", "recommended", "nrmse_validation", "library_best"} <= set(discovery)
+    assert set(discovery["nrmse_validation"]) == {"physics", "library_best", "neural", "discovered"}
+    assert discovery["expression"].endswith("*v*Abs(v)") and [t["term"] for t in discovery["terms"]] == ["v*Abs(v)"]
+    assert discovery["terms"][0]["coefficient"] == pytest.approx(-0.5, rel=0.1)
+    assert discovery["library_best"] == "quadratic_damping" and not discovery["recommended"]
+    assert report["discovery"] == discovery
+    assert (out / "figures" / "discovery.png").stat().st_size > 1000 and 'src="figures/discovery.png"' in html
+    assert "Discovery" in html and "v*Abs(v)" in (out / "discovered_effect.yaml").read_text()
+    assert events.Scalars("discovery/nrmse_validation/discovered")[0].value == pytest.approx(
+        discovery["nrmse_validation"]["discovered"], rel=1e-6)
 
 
 def test_user_physics_and_user_effect_from_a_config(tmp_path):
@@ -157,7 +170,8 @@ def test_user_physics_and_user_effect_from_a_config(tmp_path):
     (["--shortlist", "-1"], None, "--shortlist must be at least 1"),
     (["--data", "short.csv"], None, "has 3 samples, too few"),
 ])
-def test_bad_input_exits_2_with_a_message(measured, tmp_path, args, config, message):
+def test_bad_input_exits_2_with_a_message(measured, tmp_path, monkeypatch, capsys, args, config, message):
+    """In-process (the console script's ``main``), so that eleven runs do not pay eleven interpreter start-ups."""
     (tmp_path / "user_model.py").write_text(USER_MODEL)
     (tmp_path / "bad.csv").write_text("t,u\n0,1\n0.1,2\n")
     (tmp_path / "short.csv").write_text("t,u,y\n0,1,0\n0.05,1,0.01\n0.1,1,0.02\n")
@@ -167,6 +181,11 @@ def test_bad_input_exits_2_with_a_message(measured, tmp_path, args, config, mess
     if config is not None:
         (tmp_path / "config.yaml").write_text(config + "\n")
         base = ["--config", "config.yaml", *base]
-    done = run(*base, *args, cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(tmp_path)})
-    assert done.returncode == 2, done.stdout + done.stderr
-    assert message in done.stderr
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(sys, "argv", ["torchpaml", "diagnose", *base, *args])
+    with pytest.raises(SystemExit) as exit_:
+        main()
+    captured = capsys.readouterr()
+    assert exit_.value.code == 2, captured.out + captured.err
+    assert message in captured.err

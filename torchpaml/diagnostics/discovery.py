@@ -27,7 +27,8 @@ physics alone at its fitted parameters $\hat\theta$ (linear second-order physics
    rung. It is **recommended** when it beats the physics by the ranking's rules (criterion gain above
    ``threshold``, validation mismatch down by ``min_share``, training mismatch not worse) *and* beats
    the best library effect's criterion by more than ``threshold``; otherwise the library effect,
-   which has a physical meaning and a name, is preferred.
+   which has a physical meaning and a name, is preferred. A closed form that does not beat the
+   physics means that nothing is missing: the expression is ``"0"``.
 """
 
 from __future__ import annotations
@@ -151,6 +152,29 @@ def _through_output(physics, record: Experiment, forces: torch.Tensor) -> torch.
     return responses[:, :, 0].T
 
 
+def _along_trajectories(neural, physics, names: list[str], terms: list[str], train: Sequence[Experiment],
+                        starts: Sequence[torch.Tensor]) -> tuple[torch.Tensor, ...]:
+    r"""Along the neural model's trajectories, records concatenated: $\mathcal L$ of the library terms
+    (samples, terms), of the sensitivities $\partial a/\partial\theta$ (samples, parameters) and of the learned
+    force (samples,); the measured residual $y - \hat y_{\text{physics}}$ (samples,); and the first record's
+    raw samples (x, v, u, learned, library, sensitivity) for the figure."""
+    parts: dict[str, list[torch.Tensor]] = {key: [] for key in ("library", "sensitivity", "learned", "measured")}
+    samples: dict[str, torch.Tensor] = {}
+    with torch.no_grad():
+        for record, x0 in zip(train, starts, strict=True):
+            states = simulate_rk4(neural, record.t - record.t[0], record.u[None], x0.reshape(1, -1))[0]
+            x, v, u = states[:, 0], states[:, 1], record.u[:, 0]
+            raw = {"library": torch.stack([evaluate_term(term, x, v, u, SIGN_WIDTH) for term in terms], dim=1),
+                   "sensitivity": _sensitivities(physics, names, x, v, u), "learned": neural.force(x, v, u)[:, None]}
+            for key, value in raw.items():
+                parts[key].append(_through_output(physics, record, value))
+            parts["measured"].append((record.y - simulate_record(physics, record, x0)[0])[:, 0])
+            samples = samples or {"x": x, "v": v, "u": u, **raw, "learned": raw["learned"][:, 0]}
+    library, sensitivity, learned, measured = (torch.cat(parts[k]) for k in ("library", "sensitivity", "learned",
+                                                                               "measured"))
+    return library, sensitivity, learned[:, 0], measured, samples
+
+
 def _check(physics) -> None:
     if not isinstance(physics, SecondOrderPhysics) or physics.state_space() is None:
         raise ValueError(
@@ -199,24 +223,9 @@ def discover_missing_force(
                                                 for r, x0 in zip(validation, baseline.validation_states, strict=True)]))
     terms = candidate_terms()
     names = physics.learnable_names()
-    parts = {key: [] for key in ("library", "sensitivity", "learned", "measured")}
-    samples = {}
-    with torch.no_grad():
-        for record, x0 in zip(train, baseline.train_states, strict=True):
-            states = simulate_rk4(neural.model, record.t - record.t[0], record.u[None], x0.reshape(1, -1))[0]
-            x, v, u = states[:, 0], states[:, 1], record.u[:, 0]
-            library = torch.stack([evaluate_term(term, x, v, u, SIGN_WIDTH) for term in terms], dim=1)
-            sensitivity = _sensitivities(physics, names, x, v, u)
-            learned = neural.force(x, v, u)
-            parts["library"].append(_through_output(physics, record, library))
-            parts["sensitivity"].append(_through_output(physics, record, sensitivity))
-            parts["learned"].append(_through_output(physics, record, learned[:, None])[:, 0])
-            parts["measured"].append((record.y - simulate_record(physics, record, x0)[0])[:, 0])
-            if not samples:
-                samples = {"x": x, "v": v, "u": u, "learned": learned, "library": library, "sensitivity": sensitivity}
-    library, sensitivity, learned, measured = (torch.cat(parts[k]) for k in ("library", "sensitivity", "learned",
-                                                                               "measured"))
-    Q = torch.linalg.qr(sensitivity).Q if sensitivity.shape[1] else sensitivity
+    library, sensitivity, learned, measured, samples = _along_trajectories(neural.model, physics, names, terms, train,
+                                                                           baseline.train_states)
+    Q = torch.linalg.qr(sensitivity).Q if names else sensitivity
 
     def projected(M: torch.Tensor) -> torch.Tensor:
         return M - Q @ (Q.T @ M)
@@ -224,9 +233,8 @@ def discover_missing_force(
     columns = projected(library)
     norms = columns.norm(dim=0)
     usable = [i for i in range(len(terms)) if norms[i] > 1e-6 * library[:, i].norm()]  # the rest the physics makes
-    unit = columns[:, usable] / norms[usable]
-    support, _ = select_support(unit, projected(measured[:, None])[:, 0], [projected(learned[:, None])[:, 0]],
-                                max_terms)
+    support, _ = select_support(columns[:, usable] / norms[usable], projected(measured[:, None])[:, 0],
+                                [projected(learned[:, None])[:, 0]], max_terms)
     chosen = [usable[i] for i in support]
     library_best = next((e for e in ranking.entries if e.refit is not None and not e.unphysical), None)
     if not chosen:
@@ -237,36 +245,51 @@ def discover_missing_force(
     joint = torch.linalg.lstsq(torch.cat([sensitivity, library[:, chosen]], dim=1), measured[:, None]).solution[:, 0]
     correction, coefficients = joint[: len(names)], joint[len(names):]
     samples["closed_form"] = samples["library"][:, chosen] @ coefficients + samples["sensitivity"] @ correction
+    discovered = _refit_and_prune(physics, [terms[i] for i in chosen], coefficients.tolist(),
+                                  samples["library"][:, chosen], train, validation, criterion, threshold, max_nfev,
+                                  initial_state)
+    effect = discovered.model.effects["discovered"]
+    missing, reason = _judge(baseline, library_best, discovered, threshold, min_share)
+    if missing is None:  # the closed form does not improve on the physics: nothing is missing
+        return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
+                         f"the best closed form, {effect.expression()}, does not improve on the physics: {reason}", samples)
+    return Discovery(baseline, library_best, neural.mismatch, neural_validation, effect, discovered, missing, reason,
+                     samples)
 
-    def refit(selected: list[int], values: list[float]) -> ModelScore:
-        effect = DiscoveredForce([terms[i] for i in selected], values, eps=SIGN_WIDTH)
-        extended = copy.deepcopy(physics) + effect
+
+def _refit_and_prune(physics, terms: list[str], coefficients: list[float], values: torch.Tensor,
+                     train: Sequence[Experiment], validation: Sequence[Experiment], criterion: str, threshold: float,
+                     max_nfev: int, initial_state: str) -> ModelScore:
+    """``physics + DiscoveredForce(terms)`` refitted and scored; then without the terms whose force (``values``,
+    (samples, terms), times the refitted coefficient) is below :data:`PRUNE` of the largest, unless that costs
+    more than ``threshold`` of the criterion."""
+
+    def refit(kept: list[str], start: list[float]) -> ModelScore:
+        extended = copy.deepcopy(physics) + DiscoveredForce(kept, start, eps=SIGN_WIDTH)
         estimate = refit_effect(extended, "discovered.gain", 1.0, train, max_nfev, initial_state)
         return score_model(extended, estimate, validation, criterion, initial_state)
 
-    discovered = refit(chosen, coefficients.tolist())
-    fitted = discovered.model.effects["discovered"].terms_and_coefficients()
-    forces = (samples["library"][:, chosen] * torch.tensor([c for _, c in fitted])).norm(dim=0)
-    kept = [i for i, size in zip(chosen, forces.tolist(), strict=True) if size >= PRUNE * float(forces.max())]
-    if kept != chosen:
-        pruned = refit(kept, [c for i, (_, c) in zip(chosen, fitted, strict=True) if i in kept])
-        if pruned.criterion <= discovered.criterion + threshold:
-            discovered = pruned
-    recommended, reason = _judge(baseline, library_best, discovered, threshold, min_share)
-    return Discovery(baseline, library_best, neural.mismatch, neural_validation, discovered.model.effects["discovered"],
-                     discovered, recommended, reason, samples)
+    full = refit(terms, coefficients)
+    fitted = [c for _, c in full.model.effects["discovered"].terms_and_coefficients()]
+    sizes = (values * torch.tensor(fitted)).norm(dim=0).tolist()
+    kept = [(t, c) for t, c, size in zip(terms, fitted, sizes, strict=True) if size >= PRUNE * max(sizes)]
+    if len(kept) == len(terms):
+        return full
+    pruned = refit([t for t, _ in kept], [c for _, c in kept])
+    return pruned if pruned.criterion <= full.criterion + threshold else full
 
 
 def _judge(physics: ModelScore, library: EffectEvidence | None, discovered: ModelScore, threshold: float,
-           min_share: float) -> tuple[bool, str]:
-    """Whether the closed form is recommended over the physics and the best library effect, and why."""
+           min_share: float) -> tuple[bool | None, str]:
+    """``(None, why)`` when the closed form does not improve on the physics; else whether it is recommended
+    over the best library effect, and why."""
     gain = physics.criterion - discovered.criterion
     share = 1 - discovered.nrmse_validation / physics.nrmse_validation
     if discovered.nrmse_train > physics.nrmse_train * (1 + 1e-6):
-        return False, "its refit ended above the physics' training mismatch (a failed optimisation)"
+        return None, "its refit ended above the physics' training mismatch (a failed optimisation)"
     if gain <= threshold or share < min_share:
-        return False, (f"it improves the criterion by {gain:.1f} (needed {threshold:g}) and the validation mismatch "
-                       f"by {100 * share:.1f} % (needed {100 * min_share:g} %)")
+        return None, (f"it changes the criterion by {gain:+.1f} (needed more than {threshold:g}) and the validation "
+                      f"mismatch by {100 * share:.1f} % (needed {100 * min_share:g} %)")
     if library is not None:
         margin = library.refit.criterion - discovered.criterion
         if margin <= threshold:
