@@ -18,10 +18,10 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
    ($\beta = (k/\delta)^2$), so $s_c = 0$ when $\beta \le 0$. The first-order strength
    $k_1 = \delta\,\beta^{1/q}$ starts the refit.
 3. **Refit.** The ``shortlist`` best-scored candidates are refitted with the physics
-   (all parameters learnable as in the physics, plus the effect's) on the training records. An
-   effect with shape parameters (:attr:`~torchpaml.physics.AbstractEffect.shape`: the width of
-   Coulomb friction's smoothed sign) is refitted once more with them freed, and that refit is kept
-   when it lowers the criterion by more than ``threshold``: the data asks for another shape.
+   (all parameters learnable as in the physics, plus the effect's) on the training records. When
+   the best of them has shape parameters (:attr:`~torchpaml.physics.AbstractEffect.shape`: the
+   width of Coulomb friction's smoothed sign), it is refitted once more with them freed, and that
+   refit is kept when it lowers the criterion by more than ``threshold``: the data asks for another shape.
 4. **Rank** by the information criterion on the validation records,
    $\mathrm{BIC} = n \ln(\mathrm{SSE}/n) + k \ln n$ (or $\mathrm{AIC} = n\ln(\mathrm{SSE}/n) + 2k$), $k$ the
    number of fitted parameters. The best candidate is *recommended* when
@@ -395,10 +395,14 @@ def rank_missing_effects(
     for entry in by_score[:shortlist]:
         extended, strength = extended_models[entry.effect]
         refit = refit_effect(extended, strength, entry.first_order_strength, train, max_nfev, initial_state)
-        score = score_model(extended, refit, validation, criterion, initial_state)
-        entry.refit = _free_shape(score, entry.effect, train, validation, criterion, threshold, max_nfev, initial_state)
+        entry.refit = score_model(extended, refit, validation, criterion, initial_state)
         entry.improvement = baseline.criterion - entry.refit.criterion
         entry.unphysical = unphysical_values(entry.refit.model._rows())
     refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
+    if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
+        best = refitted[0]
+        best.refit = _free_shape(best.refit, best.effect, train, validation, criterion, threshold, max_nfev, initial_state)
+        best.improvement = baseline.criterion - best.refit.criterion
+        best.unphysical = unphysical_values(best.refit.model._rows())
     rest = [e for e in by_score if e.refit is None]
     return Ranking(baseline, refitted + rest, criterion, threshold, skipped, min_share)
