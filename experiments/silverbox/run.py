@@ -1,6 +1,6 @@
 r"""Silverbox (an electronic Duffing oscillator, measured): diagnose the linear oscillator, add what is found.
 
-    python experiments/silverbox/run.py --out DIR [--data PATH] [--shortlist K]
+    python experiments/silverbox/run.py --out DIR [--data PATH] [--shortlist K] [--discover]
 
 The official split (``shared/data/silverbox/README.md``): ``train_multisine`` for training, its last
 :data:`VALIDATION_SHARE` held out inside it for validation; ``test_multisine``,
@@ -13,6 +13,9 @@ The official split (``shared/data/silverbox/README.md``): ``train_multisine`` fo
 2. :func:`~torchpaml.diagnostics.diagnose` with the nine library effects: the ladder adds what the
    validation asks for; the Chebyshev residual goes on the first and the last rung.
 3. Every rung is scored on the test records.
+4. With ``--discover``, the discovery of a force outside the library
+   (:func:`~torchpaml.diagnostics.discover_missing_force`) runs too; its model is scored on the test
+   records and ``discovery`` is added to the JSON (``discovery.json``'s content, with ``rmse``/``nrmse``).
 
 Writes ``DIR/silverbox.json``::
 
@@ -91,6 +94,7 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--data", type=Path, default=DATA, help=f"the silverbox folder (default {DATA})")
     parser.add_argument("--shortlist", type=int, default=2, help="candidates refitted per rung (default 2)")
+    parser.add_argument("--discover", action="store_true", help="also discover a force outside the library")
     args = parser.parse_args(argv)
     if not (args.data / "train_multisine.csv").is_file():
         parser.error(f"{args.data} has no train_multisine.csv; point --data at shared/data/silverbox")
@@ -98,7 +102,7 @@ def main(argv: list[str] | None = None) -> dict:
     train, validation = split(Experiment.from_csv(args.data / "train_multisine.csv"))
     tests = {name: Experiment.from_csv(args.data / f"{name}.csv") for name in TESTS}
     diagnosis = diagnose(frequency_response_start(train), default_effects(), train, validation,
-                         shortlist=args.shortlist)
+                         shortlist=args.shortlist, discover=args.discover)
     write_report(diagnosis, args.out / "diagnosis")
     models = []
     for step in diagnosis.ladder.steps:
@@ -108,6 +112,11 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,
               "hybrid": [h.to_dict() for h in diagnosis.hybrids], "seconds": time.perf_counter() - start}
+    if diagnosis.discovery is not None:
+        discovered = diagnosis.discovery.discovered
+        rmse, nrmse = test_scores(discovered.model, tests) if discovered is not None else ({}, {})
+        result["discovery"] = {**diagnosis.discovery.to_dict(), "rmse": rmse, "nrmse": nrmse}
+        result["seconds"] = time.perf_counter() - start
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "silverbox.json").write_text(json.dumps(result, indent=2))
     print(diagnosis.verdict)

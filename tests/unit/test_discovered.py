@@ -62,6 +62,8 @@ def test_the_config_block_rebuilds_the_same_force():
     assert rebuilt.terms_and_coefficients() == force.terms_and_coefficients() == [("tanh(v/0.05)", -0.4),
                                                                                  ("v*Abs(v)", 0.1)]
     assert set(rebuilt.values()) == {"gain", "c_tanhv", "c_v_absv", "eps"}
+    by_name = {"effect": {**force.to_config(), "class_path": "DiscoveredForce"}}  # loaded by its class name alone
+    assert parser.instantiate(parser.parse_object(by_name)).effect.expression() == force.expression()
 
 
 def unit_library(samples=400, terms=12, seed=0):

@@ -16,7 +16,7 @@ width ``eps`` $\varepsilon$ (m/s, positive; learnable: the data sets the shape o
 In a config (``candidates:`` of ``torchpaml diagnose --config``, or anywhere jsonargparse builds an
 effect)::
 
-    class_path: torchpaml.physics.DiscoveredForce
+    class_path: torchpaml.physics.DiscoveredForce      # or by its name alone: DiscoveredForce
     init_args: {terms: ["v**3"], coefficients: [-0.49]}
 """
 
