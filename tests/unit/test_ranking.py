@@ -5,7 +5,7 @@ import torch
 
 from torchpaml import Experiment, Oscillator, simulate
 from torchpaml.diagnostics import rank_missing_effects
-from torchpaml.diagnostics.ranking import _first_order
+from torchpaml.diagnostics.ranking import Secant, _first_order
 from torchpaml.fit import fit_physics
 from torchpaml.simulate import simulate_record
 from torchpaml.parameters import PhysicalParameter, Positive, register_parameters
@@ -41,7 +41,8 @@ def test_order_and_probe_invariance(duffing, effect, order, one_sided):
     name = f"{effect.name}.{effect.strength}"
     scores = []
     for probe in (1e-4, 1e-3):
-        score, found, _ = _first_order(base + effect, name, fit, duffing[:1], probe, reference)
+        score, found, _ = _first_order(base + effect, name, fit, duffing[:1], probe, reference,
+                                       Secant(base, duffing[:1], fit.initial_states))
         assert found == order
         scores.append(score)
     assert scores[0] == pytest.approx(scores[1], abs=1e-3)
@@ -51,9 +52,20 @@ def test_order_and_probe_invariance(duffing, effect, order, one_sided):
 def test_the_true_effect_explains_almost_all_of_a_small_residual(duffing):
     """Noise-free data and a weak effect: first order is nearly exact, so the score is near 1 and k1 near k3."""
     base, fit, reference = fitted(duffing[0])
-    score, _, strength = _first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, duffing[:1], 1e-4, reference)
+    score, _, strength = _first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, duffing[:1], 1e-4, reference,
+                                      Secant(base, duffing[:1], fit.initial_states))
     assert score > 0.97
     assert strength == pytest.approx(0.5, rel=0.15)
+
+
+def test_warm_started_secant_outputs_equal_cold_simulations(duffing):
+    """Newton from the base's trajectory converges to the same RK4 solution: equal to 1e-10 (its tolerance)."""
+    record = duffing[0]
+    base, fit, _ = fitted(record)
+    extended = (base + CubicStiffness()).assign(**{"cubic_stiffness.k3": 0.3})
+    warm = Secant(base, [record], fit.initial_states).outputs(extended)
+    cold = simulate_record(extended, record).flatten()
+    assert float((warm - cold).abs().max() / cold.abs().max()) < 1e-10
 
 
 class Offset(AbstractEffect):

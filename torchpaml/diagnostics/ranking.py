@@ -16,7 +16,9 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
    The order $q$ is read off $\|\hat y(2\delta) - \hat y(0)\| / \|\hat y(\delta) - \hat y(0)\| \approx 2^q$;
    for $q = 2$ only a positive coefficient $\beta = \tilde d_c^\top r / \|\tilde d_c\|^2$ is reachable
    ($\beta = (k/\delta)^2$), so $s_c = 0$ when $\beta \le 0$. The first-order strength
-   $k_1 = \delta\,\beta^{1/q}$ starts the refit.
+   $k_1 = \delta\,\beta^{1/q}$ starts the refit. The probes' outputs come from the tangent-linear
+   model when the base is linear (:class:`TangentLinear`, no nonlinear simulation), else from RK4
+   simulations warm-started from the base's trajectory (:class:`Secant`).
 3. **Refit.** The ``shortlist`` best-scored candidates are refitted with the physics
    (all parameters learnable as in the physics, plus the effect's) on the training records. When
    the best of them has shape parameters (:attr:`~torchpaml.physics.AbstractEffect.shape`: the
@@ -53,7 +55,8 @@ from torchpaml.fit.physics_fit import PhysicsEstimate, estimate_initial_state, f
 from torchpaml.parameters import unphysical_values
 from torchpaml.simulate.lti import simulate_lti
 from torchpaml.simulate.sensitivity import simulate_record
-from torchpaml.simulate.simulator import uniform_step
+from torchpaml.simulate.shooting import solve_rk4
+from torchpaml.simulate.simulator import checked_output, uniform_step
 from torchpaml.physics.effects import AbstractEffect
 
 __all__ = ["EffectEvidence", "ModelScore", "Ranking", "rank_missing_effects", "refit_effect", "score_model"]
@@ -243,23 +246,45 @@ class TangentLinear:
         return torch.cat(parts)
 
 
-def _probe(extended, name: str, value: float, train: list[Experiment], starts: list[torch.Tensor], scale: float,
-           tangent: TangentLinear | None) -> torch.Tensor | None:
+class Secant:
+    """Outputs of ``base + effect`` near the base, by RK4 simulations warm-started from the base's trajectory.
+
+    For a nonlinear base (or non-uniform records), where :class:`TangentLinear` does not apply. A probe
+    at a small strength stays close to the base, so Newton, started from the base's converged states,
+    needs a sweep or two instead of the several of a cold start.
+    """
+
+    def __init__(self, base, train: list[Experiment], initial_states: list[torch.Tensor]):
+        self.records = []
+        with torch.no_grad():
+            for record, x0 in zip(train, initial_states, strict=True):
+                t, u, start = record.t - record.t[0], record.u[None], x0.reshape(1, -1)
+                self.records.append((t, u, start, solve_rk4(base, t, u, start, sensitivities=False).trajectory))
+
+    def outputs(self, extended) -> torch.Tensor:
+        """The outputs of ``extended`` on the training records, concatenated."""
+        parts = []
+        with torch.no_grad():
+            for t, u, start, guess in self.records:
+                states = solve_rk4(extended, t, u, start, sensitivities=False, guess=guess).trajectory
+                parts.append(checked_output(extended.output(states, u), t).flatten())
+        return torch.cat(parts)
+
+
+def _probe(extended, name: str, value: float, scale: float, engine: TangentLinear | Secant) -> torch.Tensor | None:
     """The normalised outputs on the training records with the strength ``name`` at ``value``; ``None`` if forbidden.
 
-    First-order outputs of the tangent-linear model when there is one, else full simulations.
+    First-order outputs of the tangent-linear model when there is one, else warm-started simulations.
     """
     try:
         extended.assign(**{name: value})
     except ValueError:
         return None
-    if tangent is not None:
-        return tangent.outputs(extended) / scale
-    return torch.cat([simulate_record(extended, r, x0).flatten() for r, x0 in zip(train, starts, strict=True)]) / scale
+    return engine.outputs(extended) / scale
 
 
 def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experiment], probe: float,
-                 reference: torch.Tensor, tangent: TangentLinear | None = None) -> tuple[float, int, float]:
+                 reference: torch.Tensor, engine: TangentLinear | Secant) -> tuple[float, int, float]:
     """(score, order q, first-order strength) of the effect whose strength parameter is ``name`` (module docstring).
 
     The strength is probed at 0, δ, 2δ and -δ. An effect that moves the output the same way at ±δ
@@ -267,8 +292,7 @@ def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experime
     of its direction, so a negative coefficient scores 0.
     """
     scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
-    outputs = [_probe(extended, name, value, train, fit.initial_states, scale, tangent)
-               for value in (0.0, probe, 2 * probe, -probe)]
+    outputs = [_probe(extended, name, value, scale, engine) for value in (0.0, probe, 2 * probe, -probe)]
     if outputs[0] is None:
         raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0; "
                          "give it a constraint that allows 0 (e.g. Real())")
@@ -383,12 +407,12 @@ def rank_missing_effects(
     scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
     reference = torch.cat([simulate_record(base, r, x0).flatten(1) for r, x0 in zip(train, fit.initial_states, strict=True)],
                           dim=1)[0] / scale
-    tangent = TangentLinear.of(base, train, fit.initial_states)
+    engine = TangentLinear.of(base, train, fit.initial_states) or Secant(base, train, fit.initial_states)
     entries, extended_models = [], {}
     for candidate in candidates:
         extended = copy.deepcopy(base) + copy.deepcopy(candidate)
         strength = f"{candidate.name}.{candidate.strength}"
-        score, order, start = _first_order(extended, strength, fit, train, probe, reference, tangent)
+        score, order, start = _first_order(extended, strength, fit, train, probe, reference, engine)
         entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start))
         extended_models[candidate.name] = (extended, strength)
     by_score = sorted(entries, key=lambda e: -e.score)
