@@ -169,6 +169,7 @@ def test_user_physics_and_user_effect_from_a_config(tmp_path):
     (["--out", "train.csv"], None, "is an existing file"),
     (["--shortlist", "-1"], None, "--shortlist must be at least 1"),
     (["--data", "short.csv"], None, "has 3 samples, too few"),
+    (["--discover"], "physics: {class_path: user_model.Tank}", "discovery needs linear second-order physics"),
 ])
 def test_bad_input_exits_2_with_a_message(measured, tmp_path, monkeypatch, capsys, args, config, message):
     """In-process (the console script's ``main``), so that eleven runs do not pay eleven interpreter start-ups."""

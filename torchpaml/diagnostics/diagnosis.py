@@ -30,7 +30,7 @@ from matplotlib.figure import Figure
 
 from torchpaml.data import Experiment
 from torchpaml.diagnostics.adequacy import Adequacy, assess_adequacy
-from torchpaml.diagnostics.discovery import Discovery, discover_missing_force
+from torchpaml.diagnostics.discovery import Discovery, discover_missing_force, why_discovery_cannot_run
 from torchpaml.diagnostics.ladder import Ladder, model_ladder
 from torchpaml.diagnostics.ranking import ModelScore, Ranking
 from torchpaml.diagnostics.residuals import ResidualAnalysis, residual_analysis
@@ -109,7 +109,7 @@ class Diagnosis:
         if self.discovery is not None:
             judged = "recommended" if self.discovery.recommended else "not recommended"
             verdict += f" Discovered force: {self.discovery.expression} ({judged}: {self.discovery.reason})."
-        elif self.hybrids[-1].adequacy.inadequate:
+        elif self.hybrids[-1].adequacy.inadequate and why_discovery_cannot_run(self.baseline.model) is None:
             verdict += " To learn the form of what is missing, run the discovery (--discover, or discover=True)."
         return verdict
 
@@ -228,6 +228,8 @@ def diagnose(
     """
     train = [train] if isinstance(train, Experiment) else list(train)
     validation = [validation] if isinstance(validation, Experiment) else list(validation)
+    if discover and (reason := why_discovery_cannot_run(physics)) is not None:  # checked before any fit
+        raise ValueError(reason)
     most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
                                                                  for c in candidates),
                                                 default=0)

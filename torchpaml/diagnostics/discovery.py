@@ -53,7 +53,7 @@ from torchpaml.simulate.sensitivity import simulate_record
 from torchpaml.simulate.shooting import simulate_rk4
 from torchpaml.simulate.simulator import uniform_step
 
-__all__ = ["Discovery", "discover_missing_force"]
+__all__ = ["Discovery", "discover_missing_force", "why_discovery_cannot_run"]
 
 #: Width of the library's smoothed sign tanh(v/eps) in the regression (the Coulomb effect's); the refit frees it.
 SIGN_WIDTH = 0.01
@@ -175,10 +175,11 @@ def _along_trajectories(neural, physics, names: list[str], terms: list[str], tra
     return library, sensitivity, learned[:, 0], measured, samples
 
 
-def _check(physics) -> None:
-    if not isinstance(physics, SecondOrderPhysics) or physics.state_space() is None:
-        raise ValueError(
-            f"discovery needs linear second-order physics (a SecondOrderPhysics with state_space()), got "
+def why_discovery_cannot_run(physics) -> str | None:
+    """Why discovery does not apply to ``physics``, or ``None`` when it does (linear second-order physics)."""
+    if isinstance(physics, SecondOrderPhysics) and physics.state_space() is not None:
+        return None
+    return (f"discovery needs linear second-order physics (a SecondOrderPhysics with state_space()), got "
             f"{getattr(physics, 'display_name', type(physics).__name__)}: the learned force is compared with the "
             "library terms through the physics' own force-to-output response. Diagnose the linear part, or add "
             "effects from the library")
@@ -213,7 +214,9 @@ def discover_missing_force(
     """
     baseline = ranking.baseline
     physics = baseline.model
-    _check(physics)
+    reason = why_discovery_cannot_run(physics)
+    if reason is not None:
+        raise ValueError(reason)
     for record in train:
         uniform_step(record.t)  # the force-to-output response is the exact (uniform-grid) path
     neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed)
