@@ -12,8 +12,8 @@ sample is used, not even the loader's 5-sample initialisation window.
    upper level's scale is free: k2 and k4 enter the output only as their product (the fit's
    identifiability warning says so), so k2 is fixed and k1, k3, k4 are learned.
 2. :func:`~torchpaml.diagnostics.diagnose` with ``initial_state="estimate"`` and the candidates
-   ``sqrt_outflow_upper``, ``sqrt_outflow_lower`` (Torricelli) and ``sensor_clip`` (the level clips
-   at 10 V), plus the library's ``output_saturation`` and ``dead_zone``, which apply to any physics.
+   ``sqrt_outflow_upper``, ``sqrt_outflow_lower`` (Torricelli), ``upper_overflow`` (the upper tank
+   spills above a rim) and ``sensor_clip`` (the level clips at 10 V), plus the library's ``output_saturation`` and ``dead_zone``, which apply to any physics.
 3. Every rung is scored on ``test``.
 
 Writes ``DIR/cascaded_tanks.json`` in the shape of ``silverbox.json``, with ``rmse: {"test": V}`` and
@@ -27,7 +27,7 @@ import json
 import time
 from pathlib import Path
 
-from tanks import SensorClip, TorricelliOutflow, TwoTanks
+from tanks import SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow
 
 from torchpaml import Experiment
 from torchpaml.diagnostics import diagnose
@@ -40,8 +40,8 @@ VALIDATION_SHARE = 0.25
 
 
 def candidates() -> list:
-    return [TorricelliOutflow(tank="upper"), TorricelliOutflow(tank="lower"), SensorClip(), OutputSaturation(),
-            DeadZone()]
+    return [TorricelliOutflow(tank="upper"), TorricelliOutflow(tank="lower"), UpperOverflow(), SensorClip(),
+            OutputSaturation(), DeadZone()]
 
 
 def main(argv: list[str] | None = None) -> dict:

@@ -9,6 +9,8 @@ with x1 the upper and x2 the lower level (in sensor volts). The effects:
 * :class:`TorricelliOutflow` (``sqrt_outflow_upper``, ``sqrt_outflow_lower``): a tank's outflow
   through its opening grows as $\sqrt{\text{level}}$ (Bernoulli); a *rate* on the tank's equation and,
   for the upper tank, the same flow into the lower one;
+* :class:`UpperOverflow` (``upper_overflow``): above a level the upper tank spills; a share of the
+  spill falls into the lower tank, the rest returns to the reservoir: *rates* on both equations;
 * :class:`SensorClip` (``sensor_clip``): the lower tank overflows and the measured level clips at
   :data:`CLIP_LEVEL` = 10 V (the README counts the clipped samples): an *output map*.
 """
@@ -20,7 +22,7 @@ import torch
 from torchpaml.parameters import Interval, PhysicalParameter, Positive, Real, register_parameters
 from torchpaml.physics import AbstractEffect, AbstractPhysics
 
-__all__ = ["CLIP_LEVEL", "SensorClip", "TorricelliOutflow", "TwoTanks"]
+__all__ = ["CLIP_LEVEL", "SensorClip", "TorricelliOutflow", "TwoTanks", "UpperOverflow"]
 
 CLIP_LEVEL = 10.0
 
@@ -79,6 +81,33 @@ class TorricelliOutflow(AbstractEffect):
         if self.tank == "upper":
             terms["lower"] = physics.k2 / physics.k1 * flow
         return self.on_state(physics, x, terms)
+
+
+class UpperOverflow(AbstractEffect):
+    r"""The upper tank spills above its rim: $q = c\,\max(x_1 - h\,k_4/k_1, 0)$ leaves it, $s\,q\,k_2/k_1$ reaches the lower one.
+
+    The rim $h$ is given in input volts: the level that a constant input of $h$ V settles at
+    ($k_4 h / k_1$), so that it does not depend on the unmeasured scale of the upper level. ``h`` is a
+    shape parameter (fixed at its start, freed by the ranking when the data asks); $s \in [0, 1]$ is
+    the share of the spill that falls into the lower tank.
+    """
+
+    name, equation = "upper_overflow", "- c*max(x_upper - h*k4/k1, 0), s of it into the lower tank"
+    states = ("upper", "lower")
+    shape = ("h",)
+
+    def __init__(self, c: float = 0.0, h: float = 5.0, s: float = 0.5, *, learn=("c", "s")):
+        super().__init__()
+        register_parameters(self, [
+            PhysicalParameter("c", c, "1/s", Real(), "spill rate above the rim", physical=(0.0, float("inf"))),
+            PhysicalParameter("h", h, "V (input)", Positive(), "rim, as the input that settles there"),
+            PhysicalParameter("s", s, "-", Interval(0.0, 1.0), "share of the spill into the lower tank"),
+        ], learn)
+
+    def rate(self, physics, x, u):
+        rim = self.h * physics.k4 / physics.k1
+        spill = self.c * (x[..., 0] - rim).clamp(min=0)
+        return self.on_state(physics, x, {"upper": -spill, "lower": self.s * physics.k2 / physics.k1 * spill})
 
 
 class SensorClip(AbstractEffect):
