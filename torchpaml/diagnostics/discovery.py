@@ -240,9 +240,9 @@ def discover_missing_force(
                                 [projected(learned[:, None])[:, 0]], max_terms)
     chosen = [usable[i] for i in support]
     library_best = next((e for e in ranking.entries if e.refit is not None and not e.unphysical), None)
+    physics_only = torch.linalg.lstsq(sensitivity, measured[:, None]).solution[:, 0] if names else torch.zeros(0)
     if not chosen:
-        correction = torch.linalg.lstsq(sensitivity, measured[:, None]).solution[:, 0] if names else torch.zeros(0)
-        samples["closed_form"] = samples["sensitivity"] @ correction
+        samples["closed_form"] = samples["sensitivity"] @ physics_only
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
                          "the sparse regression kept no term: nothing is missing that the physics cannot make", samples)
     joint = torch.linalg.lstsq(torch.cat([sensitivity, library[:, chosen]], dim=1), measured[:, None]).solution[:, 0]
@@ -254,6 +254,7 @@ def discover_missing_force(
     effect = discovered.model.effects["discovered"]
     missing, reason = _judge(baseline, library_best, discovered, threshold, min_share)
     if missing is None:  # the closed form does not improve on the physics: nothing is missing
+        samples["closed_form"] = samples["sensitivity"] @ physics_only
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
                          f"the best closed form, {effect.expression()}, does not improve on the physics: {reason}", samples)
     return Discovery(baseline, library_best, neural.mismatch, neural_validation, effect, discovered, missing, reason,
