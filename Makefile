@@ -48,3 +48,4 @@ silverbox: install
 
 tanks: install
 	$(PYTHON) experiments/cascaded_tanks/run.py --out results/cascaded_tanks
+	$(PYTHON) experiments/cascaded_tanks/reference.py

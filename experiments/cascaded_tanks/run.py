@@ -72,7 +72,8 @@ def main(argv: list[str] | None = None) -> dict:
               "hybrid": [h.to_dict() for h in diagnosis.hybrids], "seconds": time.perf_counter() - start}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "cascaded_tanks.json").write_text(json.dumps(result, indent=2))
-    print(diagnosis.ranking.table())
+    for ranking in diagnosis.ladder.rankings:
+        print(ranking.table())
     print(diagnosis.verdict)
     print(f"wrote {args.out / 'cascaded_tanks.json'} in {result['seconds']:.0f} s")
     return result

@@ -7,8 +7,8 @@ $$ \dot x_1 = -k_1 x_1 + k_4 u, \qquad \dot x_2 = k_2 x_1 - k_3 x_2, \qquad y = 
 with x1 the upper and x2 the lower level (in sensor volts). The effects:
 
 * :class:`TorricelliOutflow` (``sqrt_outflow_upper``, ``sqrt_outflow_lower``): a tank's outflow
-  through its opening grows as $\sqrt{\text{level}}$ (Bernoulli); a *rate* on the tank's equation and,
-  for the upper tank, the same flow into the lower one;
+  through its opening grows as $\sqrt{\text{level}}$ (Bernoulli), not as the level; a *rate* on the
+  tank's equation and, for the upper tank, on the lower one, which that flow feeds;
 * :class:`UpperOverflow` (``upper_overflow``): above a level the upper tank spills; a share of the
   spill falls into the lower tank, the rest returns to the reservoir: *rates* on both equations;
 * :class:`SensorClip` (``sensor_clip``): the lower tank overflows and the measured level clips at
@@ -28,18 +28,26 @@ CLIP_LEVEL = 10.0
 
 
 class TwoTanks(AbstractPhysics):
-    """Two cascaded tanks with linear outflows (module docstring). State (batch, 2) = (upper, lower)."""
+    """Two cascaded tanks with linear outflows (module docstring). State (batch, 2) = (upper, lower).
+
+    ``levels``: the initial state of :meth:`initial_state`, the start of a fit that estimates it.
+    """
 
     state_names = ("upper", "lower")
 
-    def __init__(self, k1=0.01, k2=0.01, k3=0.01, k4=0.01, *, learn=("k1", "k2", "k3", "k4")):
+    def __init__(self, k1=0.01, k2=0.01, k3=0.01, k4=0.01, *, levels=(0.0, 0.0), learn=("k1", "k2", "k3", "k4")):
         super().__init__()
+        self.levels = tuple(float(level) for level in levels)
         register_parameters(self, [
             PhysicalParameter("k1", k1, "1/s", Positive(), "upper outflow rate"),
             PhysicalParameter("k2", k2, "1/s", Positive(), "inflow rate of the lower tank"),
             PhysicalParameter("k3", k3, "1/s", Positive(), "lower outflow rate"),
             PhysicalParameter("k4", k4, "1/s", Positive(), "pump gain"),
         ], learn)
+
+    def initial_state(self, batch: int) -> torch.Tensor:
+        """``levels`` (rest by default), (batch, 2): where a fit that estimates the initial state starts."""
+        return torch.tensor([self.levels], dtype=torch.float64).expand(batch, 2).clone()
 
     def derivative(self, t, x, u):
         upper, lower = x[..., 0], x[..., 1]
@@ -57,30 +65,36 @@ class TwoTanks(AbstractPhysics):
 
 
 class TorricelliOutflow(AbstractEffect):
-    r"""A tank's outflow $c\sqrt{x}$ on top of the linear one: $\dot x_{\text{tank}} \mathrel{-}= c\sqrt{x_{\text{tank}}}$.
+    r"""A tank's outflow bends from linear towards Torricelli: $k\,x \to k\,x^{1 - g/2}$.
 
-    For ``tank="upper"`` the same flow, scaled by $k_2/k_1$ as in the base, enters the lower tank.
-    Levels below 0 count as 0.
+    $g = 0$ is the base's linear outflow and $g = 1$ the square-root law of Bernoulli/Torricelli for a
+    level read in length units, so the base's rate $k$ keeps its meaning and the effect is a *rate*
+    $-k\,(x^{1-g/2} - x)$ on the tank's equation. The sensor here is uncalibrated (its zero and its
+    scale in volts are unknown), so on its scale physics fixes the exponent only as far as the outflow
+    growing with the level, no faster than linearly: $g \in [0, 2]$ is the physical range. For
+    ``tank="upper"`` the same flow enters the lower tank with the base's inflow rate $k_2$: at
+    $g = 1$ the model is the benchmark document's $\dot x_1 = -k_1\sqrt{x_1} + k_4 u$,
+    $\dot x_2 = k_2\sqrt{x_1} - k_3 x_2$. Levels below $10^{-9}$ count as $10^{-9}$.
     """
 
     states = ("upper", "lower")
 
-    def __init__(self, c: float = 0.0, tank: str = "upper", *, learn=("c",)):
+    def __init__(self, g: float = 0.0, tank: str = "upper", *, learn=("g",)):
         super().__init__()
         if tank not in ("upper", "lower"):
             raise ValueError(f"tank must be 'upper' or 'lower', got {tank!r}")
         self.tank, self.name = tank, f"sqrt_outflow_{tank}"
-        self.equation = f"- c*sqrt(x_{tank})"
-        register_parameters(self, [PhysicalParameter("c", c, "V^0.5/s", Real(), "Torricelli outflow coefficient",
-                                                     physical=(0.0, float("inf")))], learn)
+        self.equation = f"k*x_{tank} -> k*x_{tank}^(1 - g/2)"
+        register_parameters(self, [PhysicalParameter("g", g, "-", Interval(-1.0, 2.0),
+                                                     "outflow law: 0 linear, 1 square root", physical=(0.0, 2.0))],
+                            learn)
 
     def rate(self, physics, x, u):
-        level = x[..., self.states.index(self.tank)].clamp(min=1e-12)
-        flow = self.c * level.sqrt()
-        terms = {self.tank: -flow}
-        if self.tank == "upper":
-            terms["lower"] = physics.k2 / physics.k1 * flow
-        return self.on_state(physics, x, terms)
+        level = x[..., self.states.index(self.tank)].clamp(min=1e-9)
+        bend = level ** (1 - self.g / 2) - level
+        if self.tank == "lower":
+            return self.on_state(physics, x, {"lower": -physics.k3 * bend})
+        return self.on_state(physics, x, {"upper": -physics.k1 * bend, "lower": physics.k2 * bend})
 
 
 class UpperOverflow(AbstractEffect):

@@ -13,12 +13,12 @@ tanks = load("cascaded_tanks/tanks.py")
 
 def test_a_rate_on_a_named_state_changes_that_equation_and_the_flow_it_feeds():
     base = tanks.TwoTanks(0.02, 0.02, 0.01, 0.05)
-    model = base + tanks.TorricelliOutflow(0.03, tank="upper")
+    model = base + tanks.TorricelliOutflow(1.0, tank="upper")  # g = 1: the square-root law
     x, u = torch.tensor([[4.0, 2.0]]), torch.tensor([[1.0]])
     with torch.no_grad():
         extra = model.derivative(0.0, x, u) - base.derivative(0.0, x, u)
-    assert float(extra[0, 0]) == pytest.approx(-0.03 * 2.0)  # -c sqrt(4)
-    assert float(extra[0, 1]) == pytest.approx(+0.03 * 2.0 * 0.02 / 0.02)  # into the lower tank, scaled k2/k1
+    assert float(extra[0, 0]) == pytest.approx(-0.02 * (2.0 - 4.0))  # -k1 (sqrt(4) - 4): k1 x -> k1 sqrt(x)
+    assert float(extra[0, 1]) == pytest.approx(+0.02 * (2.0 - 4.0))  # the same flow into the lower tank, at k2
 
 
 def test_maps_apply_to_any_physics_and_forces_are_refused_with_the_reason():
