@@ -179,3 +179,26 @@ def test_a_warm_start_converges_to_the_same_solution(drive):
     warm = solve_rk4(_duffing(k3=2.1), t, u, x0, guess=cold.trajectory)  # a neighbour's solution as the guess
     reference = solve_rk4(_duffing(k3=2.1), t, u, x0)
     assert _relative(warm.trajectory, reference.trajectory) < 1e-10
+
+
+class _UserDuffing(torch.nn.Module):
+    """``_duffing()`` as a user would write it: no linear base, and a derivative stacked row-major."""
+
+    state_dim, state_names = 2, ("position", "velocity")
+
+    def derivative(self, t, x, u):
+        pos, vel = x[:, 0], x[:, 1]
+        return torch.stack([vel, 4.0 * u[:, 0] - 0.8 * vel - 4.0 * pos - 2.0 * pos**3], dim=-1)
+
+
+def test_any_memory_layout_and_start_give_the_same_solution(drive):
+    """The library's composed model (state-major derivative, Newton started from its linear base's
+    trajectory) and the same ODE written by a user (row-major, started from x0 held): one solution."""
+    from torchpaml.simulate.shooting import simulate_rk4
+
+    t, u = drive
+    x0 = torch.tensor([[0.2, -0.1]], dtype=torch.float64)
+    with torch.no_grad():
+        library = simulate_rk4(_duffing(), t, u, x0)
+        user = simulate_rk4(_UserDuffing(), t, u, x0)
+    assert _relative(user, library) < 1e-10

@@ -1,6 +1,6 @@
 """Physics models as ``nn.Module``s with named, constrained physical parameters, and effects to add to them."""
 
-from torchpaml.physics.base import AbstractPhysics, SecondOrderPhysics
+from torchpaml.physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
 from torchpaml.physics.composed import ComposedModel, compose
 from torchpaml.physics.discovered import DiscoveredForce, candidate_terms
 from torchpaml.physics.effects import (
@@ -23,6 +23,7 @@ from torchpaml.physics.pendulum import Pendulum
 __all__ = [
     "AbstractPhysics",
     "SecondOrderPhysics",
+    "state_vector",
     "Oscillator",
     "Pendulum",
     "AbstractEffect",

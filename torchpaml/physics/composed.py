@@ -17,7 +17,7 @@ import torch
 from torch import nn
 
 from torchpaml.parameters import describe_parameters, format_table
-from torchpaml.physics.base import AbstractPhysics, SecondOrderPhysics
+from torchpaml.physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
 from torchpaml.physics.effects import AbstractEffect
 
 __all__ = ["ComposedModel", "compose"]
@@ -63,12 +63,17 @@ class ComposedModel(AbstractPhysics):
         return u
 
     def derivative(self, t, x, u):
-        dx = self.base.derivative(t, x, self._mapped(u))
+        mapped = self._mapped(u)
         if isinstance(self.base, SecondOrderPhysics):  # forces apply there only (AbstractEffect.applies_to)
-            forces = [f for e in self.effects.values()
-                      if (f := e.force(self.base, x[..., 0], x[..., 1], u[..., 0])) is not None]
-            if forces:
-                dx = dx + torch.stack([torch.zeros_like(forces[0]), sum(forces)], dim=-1)
+            pos, vel = x[..., 0], x[..., 1]
+            acceleration = self.base.acceleration(t, pos, vel, mapped[..., 0])
+            for effect in self.effects.values():
+                force = effect.force(self.base, pos, vel, u[..., 0])
+                if force is not None:
+                    acceleration = acceleration + force
+            dx = state_vector([vel, acceleration])
+        else:
+            dx = self.base.derivative(t, x, mapped)
         for effect in self.effects.values():
             extra = effect.rate(self.base, x, u)
             if extra is not None:

@@ -49,6 +49,7 @@ import torch
 from torch import nn
 
 from torchpaml.parameters import PhysicalParameter, Positive, Real, register_parameters
+from torchpaml.physics.base import SecondOrderPhysics, state_vector
 
 __all__ = [
     "AbstractEffect",
@@ -101,8 +102,6 @@ class AbstractEffect(nn.Module):
 
     def applies_to(self, physics: nn.Module) -> str | None:
         """Why this effect cannot be added to ``physics`` (the base model), or ``None`` if it can."""
-        from torchpaml.physics.base import SecondOrderPhysics
-
         if type(self).force is not AbstractEffect.force and not isinstance(physics, SecondOrderPhysics):
             return (f"{self.name} is a force, which acts on second-order (mechanical) physics with state (position, "
                     f"velocity); {physics.display_name} is not a SecondOrderPhysics")
@@ -127,8 +126,7 @@ class AbstractEffect(nn.Module):
     @staticmethod
     def on_state(physics: nn.Module, x: torch.Tensor, terms: dict[str, torch.Tensor]) -> torch.Tensor:
         """A ``rate`` (batch, n_state) that adds ``terms[name]`` (batch,) to the equation of each named state."""
-        columns = [terms.get(name, torch.zeros_like(x[..., 0])) for name in physics.state_names]
-        return torch.stack(columns, dim=-1)
+        return state_vector([terms.get(name, torch.zeros_like(x[..., 0])) for name in physics.state_names])
 
 
 class CubicStiffness(AbstractEffect):

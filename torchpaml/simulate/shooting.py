@@ -25,6 +25,12 @@ $B \cdot S \cdot (2n + 1)$ rows. This is parallel-in-time Newton (DEER, Lim et a
 segments rather than single steps: inside a segment the integration stays nonlinear, which is what
 keeps Newton from diverging when a cubic term dominates.
 
+**Start and cost.** Newton starts from a nearby solution when the caller has one (a fit's previous
+iterate), else from the exact trajectory of a composed model's linear base (:func:`linear_guess`),
+else from $x_0$ held. The stage times and inputs of every step are laid out once per solve, the states
+are kept state-major (each state's column contiguous: :func:`~torchpaml.physics.state_vector`), and
+each RK4 stage is one fused ``addcmul``, so a step costs little more than its four calls of the physics.
+
 **Gradients** (reverse and forward mode) come from the implicit function theorem. With the converged
 starts $\xi^*$ held fixed, one differentiable sweep gives $x_{s,k}(\xi^*_s;\theta)$ and $e_s(\theta)$. The
 starts' drift obeys $\delta\xi_{s+1} = G_s\,\delta\xi_s + (e_s(\theta) - \xi^*_{s+1})$, $\delta\xi_0 = x_0 - \xi^*_0$:
@@ -43,6 +49,7 @@ import torch
 from torch.nn.utils import parametrize
 
 from torchpaml.errors import SimulationError
+from torchpaml.simulate.lti import simulate_lti
 from torchpaml.simulate.scan import linear_recurrence
 
 __all__ = ["RK4Solution", "SEGMENT_STEPS", "simulate_rk4", "solve_rk4"]
@@ -56,6 +63,8 @@ PERTURBATION = 1e-5
 FORWARD_PERTURBATION = 1e-7
 #: Rows per sweep above which segments are lengthened: larger tensors leave the CPU cache.
 CACHE_ROWS = 32768
+#: Memory up to which a layout keeps the per-step stage times and inputs of its sweeps (repeated per copy).
+STAGE_BYTES = 64 * 2**20
 #: Defect (relative to the state's scale) below which the last Newton update is applied linearly.
 NEWTON_TOL = 1e-7
 #: Factor by which the segments lengthen when Newton does not converge in ``max_sweeps`` sweeps.
@@ -64,65 +73,79 @@ GROWTH = 8
 TRUST = 0.25
 
 
-def _rk4_sweep(physics, x: torch.Tensor, t0: torch.Tensor, h: torch.Tensor, u0: torch.Tensor, u1: torch.Tensor,
-               substeps: int, copies: int) -> torch.Tensor:
-    """Integrate ``copies`` stacked row blocks through L steps.
+def _rk4_sweep(physics, x: torch.Tensor, stages, substeps: int) -> torch.Tensor:
+    """Integrate the rows of ``x`` (rows, n) through the steps of ``stages`` (:meth:`_Layout.stages`).
 
-    Args:
-        x: start states, (copies * rows, n).
-        t0, h: step start times and lengths, (rows, L).
-        u0, u1: input at the start and the end of each step, (rows, L, m).
-        copies: how many row blocks share the same time and input.
+    The states are kept state-major (each state's column contiguous, see
+    :func:`~torchpaml.physics.state_vector`), and each RK4 stage is a fused ``addcmul``.
 
     Returns:
-        states at the step boundaries, (copies * rows, L + 1, n).
+        states at the step boundaries, (n, L + 1, rows), contiguous.
     """
-    states = [x]
+    x = x.t().contiguous().t()
+    states = [x.t()]
     f = physics.derivative
-    for k in range(h.shape[1]):
-        t_k, h_k, u_k = t0[:, k].repeat(copies), h[:, k, None].repeat(copies, 1), u0[:, k].repeat(copies, 1)
-        du = u1[:, k].repeat(copies, 1) - u_k
-        step = h_k / substeps
+    for times, inputs, (half, step, sixth) in stages:
         for j in range(substeps):
-            a, mid, c = j / substeps, (j + 0.5) / substeps, (j + 1) / substeps
-            t_a, t_mid, t_c = t_k + a * h_k[:, 0], t_k + mid * h_k[:, 0], t_k + c * h_k[:, 0]
-            u_a, u_mid, u_c = u_k + a * du, u_k + mid * du, u_k + c * du
+            (t_a, t_mid, t_c), (u_a, u_mid, u_c) = times[2 * j : 2 * j + 3], inputs[2 * j : 2 * j + 3]
             k1 = f(t_a, x, u_a)
-            k2 = f(t_mid, x + (step / 2) * k1, u_mid)
-            k3 = f(t_mid, x + (step / 2) * k2, u_mid)
-            k4 = f(t_c, x + step * k3, u_c)
-            x = x + (step / 6) * (k1 + 2 * k2 + 2 * k3 + k4)
-        states.append(x)
+            k2 = f(t_mid, torch.addcmul(x, half, k1), u_mid)
+            k3 = f(t_mid, torch.addcmul(x, half, k2), u_mid)
+            k4 = f(t_c, torch.addcmul(x, step, k3), u_c)
+            x = torch.addcmul(x, sixth, torch.add(k1 + k4, k2 + k3, alpha=2))
+        states.append(x.t())
     return torch.stack(states, dim=1)
 
 
 class _Layout:
     """The record cut into S segments of L steps, padded at the end with steps of length 0."""
 
-    def __init__(self, t: torch.Tensor, u: torch.Tensor, segment: int):
+    def __init__(self, t: torch.Tensor, u: torch.Tensor, segment: int, substeps: int):
         batch, N, m = u.shape
         steps = N - 1
         segment = max(segment, math.ceil(batch * steps * 3 / CACHE_ROWS))
         self.L = max(1, min(segment, steps))
         self.S = math.ceil(steps / self.L)
         pad = self.S * self.L - steps
-        self.batch, self.N = batch, N
-        h = torch.cat([torch.diff(t), t.new_zeros(pad)])
-        t0 = torch.cat([t[:-1], t[-1:].expand(pad)])
+        self.batch, self.N, self.substeps = batch, N, substeps
+        h = torch.cat([torch.diff(t), t.new_zeros(pad)]).reshape(self.S, self.L).t()  # (L, S)
+        t0 = torch.cat([t[:-1], t[-1:].expand(pad)]).reshape(self.S, self.L).t()
         u0 = torch.cat([u[:, :-1], u[:, -1:].expand(batch, pad, m)], dim=1)
         u1 = torch.cat([u[:, 1:], u[:, -1:].expand(batch, pad, m)], dim=1)
-        rows = batch * self.S
-        self.h = h.reshape(1, self.S, self.L).expand(batch, -1, -1).reshape(rows, self.L)
-        self.t0 = t0.reshape(1, self.S, self.L).expand(batch, -1, -1).reshape(rows, self.L)
-        self.u0 = u0.reshape(rows, self.L, m)
-        self.u1 = u1.reshape(rows, self.L, m)
+        # every stage's time and input (L, 2 substeps + 1, rows, ...) at the fractions j / (2 substeps), and the
+        # half, whole and sixth substep (L, 3, S, 1); the time and the steps are shared by the batch
+        fractions = torch.arange(2 * substeps + 1, dtype=t.dtype) / (2 * substeps)
+        self._times = t0[:, None] + fractions[:, None] * h[:, None]
+        rows = lambda v: v.reshape(batch * self.S, self.L, m).transpose(0, 1)  # noqa: E731  (L, batch * S, m)
+        start, change = rows(u0), rows(u1 - u0)
+        self._inputs = start[:, None] + fractions[:, None, None] * change[:, None]
+        self._steps = (h / substeps)[:, None, :, None] * torch.tensor([0.5, 1.0, 1 / 6], dtype=t.dtype)[:, None, None]
+        self._stages: dict[int, list] = {}
 
-    def sweep(self, physics, starts: torch.Tensor, substeps: int, copies: int = 1) -> torch.Tensor:
-        """starts (copies, batch, S, n) -> states (copies, batch, S, L + 1, n)."""
+    def stages(self, copies: int):
+        """Per step, for ``copies`` stacked blocks of batch * S rows: the stage times (a tuple of 2 substeps + 1
+        of (rows,)), the inputs ((rows, m) each), and the half, whole and sixth substep ((rows, 1) each).
+
+        Kept for the next sweep with as many copies when they take less than :data:`STAGE_BYTES` and carry
+        no gradient (an input that requires one is differentiated through a fresh graph every sweep)."""
+        graph = torch.is_grad_enabled() and self._inputs.requires_grad
+        if copies in self._stages and not graph:
+            return self._stages[copies]
+        shared = copies * self.batch
+        stages = ((times.repeat(1, shared).unbind(0), inputs.repeat(1, copies, 1).unbind(0),
+                   steps.repeat(1, shared, 1).unbind(0))
+                  for times, inputs, steps in zip(self._times, self._inputs, self._steps))
+        size = copies * (self._times.numel() * self.batch + self._inputs.numel() + self._steps.numel() * self.batch)
+        if graph or size * self._inputs.element_size() > STAGE_BYTES:
+            return stages
+        self._stages[copies] = list(stages)
+        return self._stages[copies]
+
+    def sweep(self, physics, starts: torch.Tensor, copies: int = 1) -> torch.Tensor:
+        """starts (copies, batch, S, n) -> states (copies, batch, S, L + 1, n), a view of state-major memory."""
         n = starts.shape[-1]
-        flat = starts.reshape(-1, n)
-        states = _rk4_sweep(physics, flat, self.t0, self.h, self.u0, self.u1, substeps, copies)
-        return states.reshape(copies, self.batch, self.S, self.L + 1, n)
+        states = _rk4_sweep(physics, starts.reshape(-1, n), self.stages(copies), self.substeps)
+        return states.reshape(n, self.L + 1, copies, self.batch, self.S).permute(2, 3, 4, 1, 0)
 
     def assemble(self, states: torch.Tensor) -> torch.Tensor:
         """Segment states (batch, S, L + 1, n) -> the record's states (batch, N, n)."""
@@ -131,24 +154,38 @@ class _Layout:
         return torch.cat([body, states[:, -1:, self.L]], dim=1)[:, : self.N]
 
     def time_of_segment(self, s: int) -> float:
-        return float(self.t0.reshape(self.batch, self.S, self.L)[0, s, 0])
+        return float(self._times[0, 0, s])
 
 
-def _sweep_with_sensitivities(physics, layout: _Layout, starts: torch.Tensor, scale: torch.Tensor, substeps: int,
-                              central: bool):
-    """Centre states (batch, S, L+1, n) and T = d states / d start (batch, S, L+1, n, n).
+class _Sweep:
+    """One sweep from the starts and from the starts perturbed along each state, whose differences give the
+    sensitivities T = d states / d start.
 
     ``central``: central differences (2n extra rows, error ~1e-10), for the sweep whose T feeds
     gradients; otherwise forward differences (n extra rows, error ~1e-7), enough for Newton's G.
     """
-    n = starts.shape[-1]
-    delta = (PERTURBATION if central else FORWARD_PERTURBATION) * scale
-    signs = [torch.diag(delta), -torch.diag(delta)] if central else [torch.diag(delta)]
-    offsets = torch.cat([torch.zeros(1, n, dtype=starts.dtype), *signs])
-    states = layout.sweep(physics, starts[None] + offsets[:, None, None, :], substeps, copies=len(offsets))
-    low = states[n + 1 :] if central else states[:1]
-    T = ((states[1 : n + 1] - low).detach() / ((2 if central else 1) * delta[:, None, None, None, None])).movedim(0, -1)
-    return states[0], T
+
+    def __init__(self, physics, layout: _Layout, starts: torch.Tensor, scale: torch.Tensor, central: bool):
+        n = starts.shape[-1]
+        self.n, self.central = n, central
+        self.delta = (PERTURBATION if central else FORWARD_PERTURBATION) * scale
+        signs = [torch.diag(self.delta), -torch.diag(self.delta)] if central else [torch.diag(self.delta)]
+        offsets = torch.cat([torch.zeros(1, n, dtype=starts.dtype), *signs])
+        with parametrize.cached():
+            self.states = layout.sweep(physics, starts[None] + offsets[:, None, None, :], copies=len(offsets))
+
+    @property
+    def centre(self) -> torch.Tensor:
+        """The states from the starts themselves, (batch, S, L+1, n)."""
+        return self.states[0]
+
+    def sensitivities(self, step: int | None = None) -> torch.Tensor:
+        """T (batch, S, L+1, n, n), or at one ``step`` of every segment (batch, S, n, n) (-1: G, at the ends)."""
+        states = self.states.detach() if step is None else self.states[:, :, :, step].detach()
+        n = self.n
+        low = states[n + 1 :] if self.central else states[:1]
+        scale = (2 if self.central else 1) * self.delta.reshape(n, *[1] * (states.dim() - 1))
+        return ((states[1 : n + 1] - low) / scale).movedim(0, -1)
 
 
 def _trusted(ends: torch.Tensor, updated: torch.Tensor, scale: torch.Tensor, x0: torch.Tensor) -> torch.Tensor:
@@ -167,26 +204,26 @@ def _trusted(ends: torch.Tensor, updated: torch.Tensor, scale: torch.Tensor, x0:
     return torch.cat([x0[:, None], following], dim=1)
 
 
-def _newton(physics, layout: _Layout, x0: torch.Tensor, substeps: int, tol: float, max_sweeps: int,
-            differentiable: bool, guess: torch.Tensor | None = None):
-    r"""Newton on the segment starts (module docstring).
+def _newton(physics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: int,
+            differentiable: bool, guess: torch.Tensor | None, near: bool):
+    r"""Newton on the segment starts (module docstring), from ``guess``'s states at the starts if it is finite,
+    else from $x_0$ held. ``near``: the guess is a nearby solution, so the first sweep already feeds gradients.
 
     Returns the states (batch, S, L+1, n) and, when ``differentiable``, T and the starts of the last
     sweep, which started at the converged starts. Otherwise the last Newton update is applied to the states linearly,
     $x + T\,\Delta\xi$ (error $O(|\Delta\xi|^2)$), which saves a sweep.
     """
     warm = guess is not None and guess.shape[:2] == (x0.shape[0], layout.N) and bool(torch.isfinite(guess).all())
-    if warm:  # a nearby solution's states at the segment starts
+    if warm:
         starts = torch.cat([x0[:, None], guess[:, layout.L : (layout.S - 1) * layout.L + 1 : layout.L]], dim=1)
     else:
         starts = x0[:, None].expand(-1, layout.S, -1).clone()
     scale = x0.abs().amax(dim=0).clamp(min=1.0)
     for sweep in range(1, max_sweeps + 1):
-        graded = differentiable and (sweep > 1 or layout.S == 1 or warm)  # a cold first sweep is only a guess
-        with parametrize.cached():
-            centre, T = _sweep_with_sensitivities(physics, layout, starts, scale, substeps, central=graded)
-        plain = centre.detach()
-        finite = torch.isfinite(plain).flatten(2).all(dim=2).all(dim=0)  # (S,)
+        graded = differentiable and (sweep > 1 or layout.S == 1 or (warm and near))  # else the first is a guess
+        result = _Sweep(physics, layout, starts, scale, central=graded)
+        ends = result.centre[:, :, -1].detach()  # (batch, S, n); a state that blew up leaves its end non-finite
+        finite = torch.isfinite(ends).all(dim=2).all(dim=0)  # (S,)
         if not bool(finite[:sweep].all()):  # the first `sweep` starts are exact: the solution itself blows up
             s = int((~finite).nonzero()[0])
             raise SimulationError(
@@ -194,18 +231,41 @@ def _newton(physics, layout: _Layout, x0: torch.Tensor, substeps: int, tol: floa
                 f"{layout.time_of_segment(s):.4g} s; the parameters are probably unstable or unphysical (e.g. "
                 "negative damping), or the step is too long for the dynamics (raise substeps, or use method='dopri5')"
             )
-        magnitude = plain.nan_to_num(0.0, 0.0, 0.0).abs().amax(dim=(0, 1, 2))
+        magnitude = ends.nan_to_num(0.0, 0.0, 0.0).abs().amax(dim=(0, 1))
         scale = torch.where(torch.isfinite(magnitude) & (magnitude > 0), magnitude, scale)
-        ends, G = plain[:, :, -1], T[:, :, -1]
         defect = float(((ends[:, :-1] - starts[:, 1:]).abs() / scale).nan_to_num(math.inf).max()) if layout.S > 1 else 0.0
         if graded and defect <= tol:
-            return centre, T, starts
+            return result.centre, result.sensitivities(), starts
+        G = result.sensitivities(-1)
         shift = ends[:, :-1] - (G[:, :-1] @ starts[:, :-1, :, None])[..., 0]
         updated = linear_recurrence(G[:, :-1], shift, x0)
         if not differentiable and defect <= NEWTON_TOL:
-            return plain + (T @ (updated - starts)[:, :, None, :, None])[..., 0], None, None
+            T = result.sensitivities()
+            return result.centre.detach() + (T @ (updated - starts)[:, :, None, :, None])[..., 0], None, None
         starts = _trusted(ends, updated, scale, x0)
     raise _NotConverged
+
+
+def linear_guess(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor) -> torch.Tensor | None:
+    r"""The states (batch, time, n) of the linear base of a composed model (physics + effects), by the exact
+    path, driven by the same input; ``None`` where there is no linear base or the grid is not uniform.
+
+    Effects are usually corrections to the base, so its trajectory starts Newton near the solution: a
+    weak effect then converges in about half the sweeps of a start from $x_0$ held.
+    """
+    from torchpaml.physics.composed import ComposedModel
+
+    base = physics.base if isinstance(physics, ComposedModel) else None
+    if base is None or base.state_space() is None or len(t) < 2:
+        return None
+    steps = torch.diff(t)
+    if float((steps - steps.mean()).abs().max()) > 1e-6 * float(steps.mean()):
+        return None
+    with torch.no_grad():
+        A, B, _, _ = base.state_space()
+        n, m = B.shape
+        identity, zero = torch.eye(n, dtype=A.dtype), torch.zeros(n, m, dtype=A.dtype)
+        return simulate_lti(A, B, identity, zero, float(steps.mean()), u, x0)
 
 
 class _NotConverged(Exception):
@@ -215,9 +275,8 @@ class _NotConverged(Exception):
 class RK4Solution:
     """A converged multiple-shooting solution: the layout, the starts, T, and the states of the last sweep."""
 
-    def __init__(self, layout: _Layout, states: torch.Tensor, T: torch.Tensor | None, starts: torch.Tensor | None,
-                 substeps: int):
-        self.layout, self.centre, self.T, self.starts, self.substeps = layout, states, T, starts, substeps
+    def __init__(self, layout: _Layout, states: torch.Tensor, T: torch.Tensor | None, starts: torch.Tensor | None):
+        self.layout, self.centre, self.T, self.starts = layout, states, T, starts
 
     @property
     def trajectory(self) -> torch.Tensor:
@@ -234,7 +293,7 @@ class RK4Solution:
         if self.T is None:
             return self.layout.assemble(self.centre)
         with parametrize.cached():
-            states = self.layout.sweep(physics, self.starts[None], self.substeps)[0]
+            states = self.layout.sweep(physics, self.starts[None])[0]
         defects = states[:, :-1, -1] - self.starts[:, 1:]
         drift = linear_recurrence(self.T[:, :-1, -1], defects, x0 - self.starts[:, 0])
         return self.layout.assemble(states + (self.T @ drift[:, :, None, :, None])[..., 0])
@@ -258,18 +317,21 @@ def solve_rk4(
     With ``sensitivities`` the last sweep starts at the converged starts, so that T there is exact to
     central-difference accuracy; without, the last update is applied linearly and a sweep is saved.
     ``guess``: the states (batch, time, n) of a nearby solution (the previous iterate of a fit), whose
-    values at the segment starts start Newton; without it, Newton starts from $x_0$ held.
+    values at the segment starts start Newton. Without it, Newton starts from the linear base's exact
+    trajectory (:func:`linear_guess`) where there is one, else from $x_0$ held.
     """
     if substeps < 1 or segment < 1:
         raise ValueError(f"substeps and segment must be at least 1, got substeps={substeps}, segment={segment}")
+    near = guess is not None
+    guess = guess if near else linear_guess(physics, t, u, x0)
     length = segment
     while True:
-        layout = _Layout(t, u, length)
+        layout = _Layout(t, u, length, substeps)
         try:
             with torch.no_grad():
-                states, T, starts = _newton(physics, layout, x0.detach(), substeps, tol, max_sweeps, sensitivities,
-                                               guess)
-            return RK4Solution(layout, states, T, starts, substeps)
+                states, T, starts = _newton(physics, layout, x0.detach(), tol, max_sweeps, sensitivities,
+                                            guess, near)
+            return RK4Solution(layout, states, T, starts)
         except _NotConverged:
             length *= GROWTH  # fewer, longer segments; one segment is plain sequential RK4, which always ends
 
