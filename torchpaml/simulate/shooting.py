@@ -55,8 +55,9 @@ from torchpaml.simulate.scan import linear_recurrence
 __all__ = ["RK4Solution", "SEGMENT_STEPS", "simulate_rk4", "solve_rk4"]
 
 #: Default segment length L (steps). A sweep costs L dispatch-bound steps plus arithmetic on every
-#: sample; 16 keeps the first term small without making the scan over segments long.
-SEGMENT_STEPS = 16
+#: sample, which does not depend on L; measured (benchmarks/bench_simulation.py and nonlinear fits on
+#: 600, 6 000 and 65 536 samples), 2 beat 1, 4, 8 and 16 at every length.
+SEGMENT_STEPS = 2
 #: Relative size of the start perturbations of the central differences (the sweep that feeds gradients).
 PERTURBATION = 1e-5
 #: Relative size of the start perturbations of the forward differences (Newton's G).
@@ -331,7 +332,8 @@ def solve_rk4(
             with torch.no_grad():
                 states, T, starts = _newton(physics, layout, x0.detach(), tol, max_sweeps, sensitivities,
                                             guess, near)
-            return RK4Solution(layout, states, T, starts)
+            # constants of the solution: no_grad stops reverse mode, detach also stops forward mode's tangents
+            return RK4Solution(layout, states.detach(), T, None if starts is None else starts.detach())
         except _NotConverged:
             length *= GROWTH  # fewer, longer segments; one segment is plain sequential RK4, which always ends
 
