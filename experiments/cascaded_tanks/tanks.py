@@ -20,7 +20,7 @@ from __future__ import annotations
 import torch
 
 from torchpaml.parameters import Interval, PhysicalParameter, Positive, Real, register_parameters
-from torchpaml.physics import AbstractEffect, AbstractPhysics
+from torchpaml.physics import AbstractEffect, AbstractPhysics, state_vector
 
 __all__ = ["CLIP_LEVEL", "SensorClip", "TorricelliOutflow", "TwoTanks", "UpperOverflow"]
 
@@ -51,7 +51,7 @@ class TwoTanks(AbstractPhysics):
 
     def derivative(self, t, x, u):
         upper, lower = x[..., 0], x[..., 1]
-        return torch.stack([-self.k1 * upper + self.k4 * u[..., 0], self.k2 * upper - self.k3 * lower], dim=-1)
+        return state_vector([-self.k1 * upper + self.k4 * u[..., 0], self.k2 * upper - self.k3 * lower])
 
     def output(self, x, u):
         return x[..., 1:]
