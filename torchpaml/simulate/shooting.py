@@ -49,7 +49,7 @@ import torch
 from torch.nn.utils import parametrize
 
 from torchpaml.errors import SimulationError
-from torchpaml.simulate.lti import simulate_lti
+from torchpaml.simulate.lti import exact_step, simulate_lti
 from torchpaml.simulate.scan import linear_recurrence
 
 __all__ = ["RK4Solution", "SEGMENT_STEPS", "simulate_rk4", "solve_rk4"]
@@ -257,16 +257,13 @@ def linear_guess(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor) ->
     from torchpaml.physics.composed import ComposedModel
 
     base = physics.base if isinstance(physics, ComposedModel) else None
-    if base is None or base.state_space() is None or len(t) < 2:
-        return None
-    steps = torch.diff(t)
-    if float((steps - steps.mean()).abs().max()) > 1e-6 * float(steps.mean()):
+    h = None if base is None else exact_step(base, t)
+    if h is None:
         return None
     with torch.no_grad():
         A, B, _, _ = base.state_space()
         n, m = B.shape
-        identity, zero = torch.eye(n, dtype=A.dtype), torch.zeros(n, m, dtype=A.dtype)
-        return simulate_lti(A, B, identity, zero, float(steps.mean()), u, x0)
+        return simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, m, dtype=A.dtype), h, u, x0)
 
 
 class _NotConverged(Exception):

@@ -5,37 +5,11 @@ from __future__ import annotations
 import torch
 
 from torchpaml.errors import DataError, SimulationError
-from torchpaml.simulate.lti import simulate_lti
+from torchpaml.simulate.lti import exact_step, simulate_lti, uniform_step
 from torchpaml.simulate.ode import simulate_ode
 from torchpaml.simulate.shooting import SEGMENT_STEPS, simulate_rk4
 
 __all__ = ["checked_output", "exact_step", "simulate", "uniform_step"]
-
-
-def uniform_step(t: torch.Tensor, rtol: float = 1e-6) -> float:
-    """The sampling interval of a uniform grid ``t`` (time,); raises :class:`DataError` if not uniform."""
-    if t.dim() != 1 or len(t) < 2:
-        raise DataError(f"time must be a 1-D tensor of at least 2 samples, got shape {tuple(t.shape)}")
-    dt = torch.diff(t)
-    h = float(dt.mean())
-    if not bool(torch.all(dt > 0)):
-        raise DataError("time must be strictly increasing; sort the samples and drop duplicates")
-    if float((dt - h).abs().max()) > rtol * h:
-        raise DataError(
-            f"uniform sampling is required here, but the time steps range from {float(dt.min()):.6g} to "
-            f"{float(dt.max()):.6g} s; resample onto a uniform grid, or use an ODE method (method='dopri5')"
-        )
-    return h
-
-
-def exact_step(physics, t: torch.Tensor) -> float | None:
-    """The sampling interval when ``physics`` takes the exact path (linear physics, uniform grid), else ``None``."""
-    if physics.state_space() is None:
-        return None
-    try:
-        return uniform_step(t)
-    except DataError:
-        return None
 
 
 def simulate(
