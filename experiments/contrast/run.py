@@ -1,6 +1,6 @@
 r"""The contrast experiment: the orthogonal residual against the MLP baselines, two-stage and joint.
 
-    python experiments/contrast/run.py --out DIR [--quick]
+    python experiments/contrast/run.py --out DIR [--quick] [--jobs N] [--only PREFIX ...]
 
 Every run goes through ``torchpaml fit`` (LightningCLI) with a config of ``experiments/paper/`` and is
 its own TensorBoard run under ``DIR/tensorboard/`` (``tensorboard --logdir DIR/tensorboard`` overlays
@@ -15,6 +15,7 @@ them). Writes ``DIR/contrast.json``, a list of rows
 * joint, at alpha = 4, trained on the sine (the witness input) from zeta = 0.5x, 1x and 2x the
   physics-only estimate (a PhysicsFit run first).
 
+Runs are spread over ``--jobs`` processes (default 2), one thread each, longest first.
 ``--quick`` shortens every run to a couple of epochs on 20 s records (a smoke test, not a result).
 ``--only PREFIX ...`` re-trains the matching runs and keeps the other rows of ``DIR/contrast.json``.
 """
@@ -24,15 +25,51 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from multiprocessing import get_context
 from pathlib import Path
+
+import torch
 
 from torchpaml.training.cli import run_lightning
 
 CONFIGS = Path(__file__).resolve().parents[1] / "paper"
 RESIDUALS = ("chebyshev", "mlp_output", "mlp_ode")
+#: Longest first, so that the pool's last runs are short ones (measured: MLP in the ODE > output MLP > Chebyshev).
+COST = {"mlp_ode": 0, "mlp_output": 1, "chebyshev": 2}
 SHORT = ["--trainer.max_epochs", "2", "--trainer.check_val_every_n_epoch", "1"] + [
     f"--data.{split}.init_args.duration=20.0" for split in ("identification", "train", "validation", "test")
 ]
+
+
+@dataclass(frozen=True)
+class Run:
+    """One ``torchpaml fit`` of the sweep and the row it gives."""
+
+    name: str
+    config: str
+    alpha: float
+    residual: str
+    scheme: str
+    signal: str
+    zeta_init: float = 1.0
+    overrides: tuple[str, ...] = ()
+
+    @property
+    def group(self) -> str:
+        """The name ``--only`` matches: a joint run's without its starting zeta."""
+        return f"{self.scheme}_alpha{self.alpha:g}_{self.residual}"
+
+
+def plan(estimate: float) -> list[Run]:
+    """Every run in the table's order; the joint ones start zeta at 0.5x, 1x and 2x ``estimate``."""
+    runs = [Run(f"two_stage_alpha{alpha}_{residual}", f"alpha{alpha}_{residual}", float(alpha), residual, "two_stage",
+                "pseudorandom") for alpha in (4, 10) for residual in RESIDUALS]
+    runs += [Run(f"joint_alpha4_{residual}_zeta{factor * estimate:.4f}", f"joint_alpha4_{residual}", 4.0, residual,
+                 "joint", "sine", factor * estimate, (f"--model.init_args.physics.init_args.zeta={factor * estimate}",))
+             for residual in RESIDUALS for factor in (0.5, 1.0, 2.0)]
+    return runs
 
 
 def fit(config: str, out: Path, run: str, quick: bool, *overrides: str):
@@ -46,59 +83,71 @@ def fit(config: str, out: Path, run: str, quick: bool, *overrides: str):
     return cli
 
 
-def row(cli, alpha: float, residual: str, scheme: str, signal: str, zeta_init: float) -> dict:
+def train(run: Run, out: Path, quick: bool) -> dict:
+    """Fit ``run`` and return its row (whole training and validation records, simulated from rest)."""
+    cli = fit(run.config, out, run.name, quick, *run.overrides)
     model, data = cli.model, cli.datamodule
     return {
-        "alpha": alpha,
-        "residual": residual,
-        "scheme": scheme,
-        "input": signal,
-        "zeta_init": zeta_init,
+        "alpha": run.alpha,
+        "residual": run.residual,
+        "scheme": run.scheme,
+        "input": run.signal,
+        "zeta_init": run.zeta_init,
         "zeta_hat": model.physics.physical_parameters()["zeta"],
         "mismatch_train": model.record_mismatch(data.records("train")),
         "mismatch_validation": model.record_mismatch(data.records("validation")),
     }
 
 
-def contrast(out: Path, quick: bool, only: list[str] | None = None) -> list[dict]:
-    """Every run, in order; ``contrast.json`` is rewritten after each, so an interrupted sweep keeps its rows.
+def physics_estimate(out: Path, quick: bool) -> float:
+    """zeta of the physics alone, fitted on the sine (the joint runs start from 0.5x, 1x and 2x it)."""
+    return fit("alpha4_physics", out, "physics_alpha4", quick).model.physics.physical_parameters()["zeta"]
+
+
+def one_thread() -> None:
+    """Each worker computes on one core: the pool, not the operators, spreads the sweep over the machine."""
+    torch.set_num_threads(1)
+
+
+def contrast(out: Path, quick: bool, only: list[str] | None = None, jobs: int = 2) -> list[dict]:
+    """Every run, spread over ``jobs`` processes; ``contrast.json`` is rewritten, in the table's order, after each
+    run ends, so an interrupted sweep keeps its rows.
 
     With ``only`` (run-name prefixes), just the matching runs are trained; the other rows are
     taken from the existing ``contrast.json``.
     """
     path = out / "contrast.json"
     existing = json.loads(path.read_text()) if only and path.exists() else []
-    rows = []
 
-    def selected(run: str) -> bool:
-        return not only or any(run.startswith(prefix) for prefix in only)
+    def selected(run: Run) -> bool:
+        return not only or any(run.group.startswith(prefix) or run.name.startswith(prefix) for prefix in only)
 
-    def keep(*new: dict) -> None:
-        rows.extend(new)
-        path.write_text(json.dumps(rows, indent=2))
+    def kept(group: str) -> list[dict]:
+        return [r for r in existing if f"{r['scheme']}_alpha{r['alpha']:g}_{r['residual']}" == group]
 
-    for alpha in (4, 10):
-        for residual in RESIDUALS:
-            run = f"two_stage_alpha{alpha}_{residual}"
+    done: dict[str, dict] = {}
+
+    def write(runs: list[Run]) -> list[dict]:
+        rows, groups = [], []
+        for run in runs:
             if selected(run):
-                keep(row(fit(f"alpha{alpha}_{residual}", out, run, quick), float(alpha), residual, "two_stage",
-                         "pseudorandom", 1.0))
-            else:
-                key = ("two_stage", alpha, residual)
-                keep(*[r for r in existing if (r["scheme"], r["alpha"], r["residual"]) == key])
-    joint = {residual: f"joint_alpha4_{residual}" for residual in RESIDUALS}
-    if any(selected(run) for run in joint.values()):
-        estimate = fit("alpha4_physics", out, "physics_alpha4", quick).model.physics.physical_parameters()["zeta"]
-    for residual, run in joint.items():
-        if not selected(run):
-            keep(*[r for r in existing if (r["scheme"], r["residual"]) == ("joint", residual)])
-            continue
-        for factor in (0.5, 1.0, 2.0):
-            start = factor * estimate
-            cli = fit(f"joint_alpha4_{residual}", out, f"{run}_zeta{start:.4f}", quick,
-                      f"--model.init_args.physics.init_args.zeta={start}")
-            keep(row(cli, 4.0, residual, "joint", "sine", start))
-    return rows
+                rows.extend([done[run.name]] if run.name in done else [])
+            elif run.group not in groups:
+                groups.append(run.group)
+                rows.extend(kept(run.group))
+        path.write_text(json.dumps(rows, indent=2))
+        return rows
+
+    with ProcessPoolExecutor(jobs, mp_context=get_context("spawn"), initializer=one_thread) as pool:
+        joint = any(selected(run) for run in plan(1.0) if run.scheme == "joint")
+        # without joint runs to train, a placeholder estimate only places the kept joint rows
+        runs = plan(pool.submit(physics_estimate, out, quick).result() if joint else 1.0)
+        pending = {pool.submit(train, run, out, quick): run
+                   for run in sorted((r for r in runs if selected(r)), key=lambda r: COST[r.residual])}
+        for future in as_completed(pending):
+            done[pending[future].name] = future.result()
+            write(runs)
+    return write(runs)
 
 
 def markdown(rows: list[dict]) -> str:
@@ -122,6 +171,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", required=True, help="output folder")
     parser.add_argument("--quick", action="store_true", help="a couple of epochs on short records (smoke test)")
+    parser.add_argument("--jobs", type=int, default=2, help="runs trained at once, one process and one thread "
+                        "each (default 2: this machine's cores)")
     parser.add_argument("--only", nargs="+", metavar="PREFIX",
                         help="train only the runs whose name starts with PREFIX (e.g. two_stage_alpha10); "
                              "the other rows are kept from DIR/contrast.json")
@@ -129,7 +180,7 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    rows = contrast(out, args.quick, args.only)
+    rows = contrast(out, args.quick, args.only, args.jobs)
     table = markdown(rows)
     (out / "contrast.md").write_text(table + "\n")
     print(table)

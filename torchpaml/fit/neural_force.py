@@ -23,7 +23,8 @@ from torchpaml.data import Experiment
 from torchpaml.fit.output_error import minimize_output_error
 from torchpaml.physics.base import SecondOrderPhysics
 from torchpaml.residual.mlp import ForceAugmented, MLPForce
-from torchpaml.simulate.shooting import simulate_rk4, solve_rk4
+from torchpaml.simulate.shooting import simulate_rk4
+from torchpaml.simulate.simulator import simulate
 
 __all__ = ["NeuralForceFit", "fit_neural_force"]
 
@@ -74,15 +75,11 @@ def fit_neural_force(
         torch.manual_seed(seed)
         force = MLPForce(hidden, depth, x_scale=scales[0], v_scale=scales[1], u_scale=scales[2])
     model = ForceAugmented(frozen, force)
-    guesses: list[torch.Tensor | None] = [None] * len(records)
+    warm = [{} for _ in records]
 
     def predict() -> torch.Tensor:
-        outputs = []
-        for i, ((t, u), x0) in enumerate(zip(grids, starts, strict=True)):
-            solution = solve_rk4(model, t, u, x0, guess=guesses[i])
-            guesses[i] = solution.trajectory
-            outputs.append(model.output(solution.states(model, x0), u).flatten())
-        return torch.cat(outputs)
+        return torch.cat([simulate(model, t, u, x0, method="rk4", warm=w).flatten()
+                          for (t, u), x0, w in zip(grids, starts, warm, strict=True)])
 
     target = torch.cat([r.y.flatten() for r in records])
     loss, iterations = minimize_output_error(predict, target, list(force.parameters()), max_iter=max_iter)

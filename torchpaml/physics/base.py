@@ -76,6 +76,12 @@ class AbstractPhysics(nn.Module):
         """$(A, B, C, D)$ for linear physics, ``None`` (the default) for nonlinear physics."""
         return None
 
+    def linear_base(self) -> AbstractPhysics | None:
+        """Linear physics on the same states whose trajectory lies near this model's, or ``None``: the model itself
+        when linear; a composed model's base; the physics under a learned force. The RK4 engine starts Newton
+        from its exact trajectory."""
+        return self if self.state_space() is not None else None
+
     def initial_state(self, batch: int) -> torch.Tensor:
         """Rest, shape (batch, n_state)."""
         return torch.zeros(batch, self.state_dim, dtype=torch.float64)

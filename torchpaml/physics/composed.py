@@ -95,6 +95,9 @@ class ComposedModel(AbstractPhysics):
     def initial_state(self, batch):
         return self.base.initial_state(batch)
 
+    def linear_base(self):
+        return self.base.linear_base()
+
     # -- names: the base's parameters unprefixed, the effects' under their names ---------------
     def _rows(self) -> list[dict]:
         rows = describe_parameters(self.base)

@@ -21,6 +21,8 @@ class Hybrid(nn.Module):
     """``physics`` plus ``residual`` (an output residual or an :class:`MLPForce`).
 
     ``forward(t, u, **simulate_options)`` returns ``(y_physics, y_hybrid)``, both (batch, time, n_y).
+    A ``warm`` option (see :func:`~torchpaml.simulate`) serves the hybrid's simulation only, so that
+    the two simulations of a nonlinear model do not overwrite each other's states.
     """
 
     def __init__(self, physics: nn.Module, residual: nn.Module):
@@ -37,8 +39,9 @@ class Hybrid(nn.Module):
         """Whether the correction acts inside the ODE (a force) rather than on the output."""
         return isinstance(self.residual, MLPForce)
 
-    def forward(self, t: torch.Tensor, u: torch.Tensor, **simulate_options) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, t: torch.Tensor, u: torch.Tensor, warm: dict | None = None,
+                **simulate_options) -> tuple[torch.Tensor, torch.Tensor]:
         y_physics = self.physics(t, u, **simulate_options)
         if self.in_ode:
-            return y_physics, ForceAugmented(self.physics, self.residual)(t, u, **simulate_options)
+            return y_physics, ForceAugmented(self.physics, self.residual)(t, u, warm=warm, **simulate_options)
         return y_physics, y_physics + self.residual(t, u, y_physics)

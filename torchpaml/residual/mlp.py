@@ -88,3 +88,6 @@ class ForceAugmented(SecondOrderPhysics):
 
     def output(self, x, u):
         return self.physics.output(x, u)
+
+    def linear_base(self):
+        return self.physics.linear_base()

@@ -27,6 +27,7 @@ def simulate(
     substeps: int = 1,
     segment: int = SEGMENT_STEPS,
     blowup: float = 1e8,
+    warm: dict | None = None,
 ) -> torch.Tensor:
     r"""Simulate $y = \mathcal H^\theta[u]$ for the piecewise-linear input through the samples.
 
@@ -44,6 +45,9 @@ def simulate(
         knots: times where the input's slope jumps, stepped on by adaptive solvers (see
             :func:`~torchpaml.simulate.ode.simulate_ode`); the exact path needs none.
         blowup: an output beyond this magnitude raises :class:`SimulationError`.
+        warm: a dict kept by the caller between simulations of the same record (``"rk4"``): Newton
+            starts from the states the previous one stored there (see
+            :func:`~torchpaml.simulate.shooting.simulate_rk4`). The result does not depend on it.
 
     Returns:
         y: shape (batch, time, n_output). Differentiable in the physical parameters and ``u``.
@@ -60,7 +64,7 @@ def simulate(
     if h is not None:
         return checked_output(simulate_lti(*physics.state_space(), h, u, x0), t, blowup)
     if method in ("auto", "rk4"):
-        states = simulate_rk4(physics, t, u, x0, substeps=substeps, segment=segment)
+        states = simulate_rk4(physics, t, u, x0, warm, substeps=substeps, segment=segment)
         return checked_output(physics.output(states, u), t, blowup)
     states = simulate_ode(
         physics, t, u, x0, method=method, rtol=rtol, atol=atol, adjoint=adjoint, max_num_steps=max_num_steps,

@@ -79,6 +79,7 @@ class HybridSystem(L.LightningModule):
         self.witness = (witness_amplitude, float(witness_omega), float(witness_duration))
         self.physics: nn.Module
         self.residual: nn.Module | None = None
+        self._warm: dict[tuple[str, int], dict] = {}
 
     # -- the model ---------------------------------------------------------------------------
     def attach(self, physics: nn.Module, residual: nn.Module | None, bounds: dict | None) -> None:
@@ -99,12 +100,20 @@ class HybridSystem(L.LightningModule):
         """The physical parameters this workflow identifies (learned in stage 1 or jointly)."""
         return list(self._identified)
 
-    def outputs(self, t: torch.Tensor, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """``(y_physics, y_model)``: the physics alone and the stage's model (the same in stage 1)."""
+    def outputs(self, t: torch.Tensor, u: torch.Tensor, warm: dict | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(y_physics, y_model)``: the physics alone and the stage's model (the same in stage 1).
+
+        ``warm``: a nonlinear model's Newton warm start (:func:`~torchpaml.simulate`), see :meth:`warm_start`.
+        """
         if self.residual is None:
-            y = self.physics(t, u, **self.simulation)
+            y = self.physics(t, u, warm=warm, **self.simulation)
             return y, y
-        return Hybrid(self.physics, self.residual)(t, u, **self.simulation)
+        return Hybrid(self.physics, self.residual)(t, u, warm=warm, **self.simulation)
+
+    def warm_start(self, split: str, batch_idx: int) -> dict:
+        """The warm start of one batch of ``split``: every epoch simulates the same batches (the loaders do not
+        shuffle) under parameters that moved little, so each RK4 solve starts from the last one's states."""
+        return self._warm.setdefault((split, batch_idx), {})
 
     def trainable(self) -> list[nn.Parameter]:
         raise NotImplementedError
@@ -142,7 +151,8 @@ class HybridSystem(L.LightningModule):
         if self.uses_projection:
             y_physics, y_model = self.projected_outputs(batch)
         else:
-            y_physics, y_model = (scored(batch, s) for s in self.outputs(batch["t"], batch["u"]))
+            y_physics, y_model = (scored(batch, s)
+                                  for s in self.outputs(batch["t"], batch["u"], self.warm_start("train", batch_idx)))
         loss = self.global_loss(torch.sum((y - y_model) ** 2), torch.sum(y**2))
         values = {"loss": loss.detach(), "mismatch_pct": 100 * mismatch(y, y_model)}
         if self.residual is not None:
@@ -181,10 +191,11 @@ class HybridSystem(L.LightningModule):
         return {"optimizer": adam, "lr_scheduler": torch.optim.lr_scheduler.ExponentialLR(adam, self.lr_decay)}
 
     # -- evaluation --------------------------------------------------------------------------
-    def evaluate(self, batch: dict, split: str) -> dict[str, float]:
+    def evaluate(self, batch: dict, split: str, batch_idx: int) -> dict[str, float]:
         """Log and return the metrics of the stage's model on ``batch``."""
         with torch.no_grad():
-            y_physics, y_model = (scored(batch, s) for s in self.outputs(batch["t"], batch["u"]))
+            y_physics, y_model = (scored(batch, s)
+                                  for s in self.outputs(batch["t"], batch["u"], self.warm_start(split, batch_idx)))
         y = scored(batch, batch["y"])
         values = {"mismatch_pct": 100 * mismatch(y, y_model), "fit_pct": fit_percent(y, y_model)}
         if self.residual is not None:
@@ -193,10 +204,10 @@ class HybridSystem(L.LightningModule):
         return values
 
     def validation_step(self, batch: dict, batch_idx: int) -> None:
-        self.evaluate(batch, "validation")
+        self.evaluate(batch, "validation", batch_idx)
 
     def test_step(self, batch: dict, batch_idx: int) -> None:
-        self.evaluate(batch, "test")
+        self.evaluate(batch, "test", batch_idx)
 
     def record_mismatches(self, records: list) -> tuple[float, float]:
         r"""Mismatch (fraction) of the physics alone and of the stage's model over whole records.
