@@ -111,6 +111,19 @@ def test_mlp_residual_fit_reduces_the_error(grid):
     assert fit.unexplained < 0.5
 
 
+def test_mlp_residual_is_its_network_on_each_causal_window():
+    """The convolution that applies the first layer equals the network on the flattened window of the last L
+    samples of u and y_physics (zeros before t0), to rounding."""
+    torch.manual_seed(0)
+    residual = MLPResidual(window=5, hidden=8, depth=2, u_scale=2.0, y_scale=0.5)
+    torch.nn.init.normal_(residual.net[-1].weight)  # the last layer starts at zero
+    u, y = torch.randn(2, 30, 1, dtype=torch.float64), torch.randn(2, 30, 1, dtype=torch.float64)
+    signals = torch.nn.functional.pad(torch.cat([u / 2.0, y / 0.5], dim=-1), (0, 0, 4, 0))
+    for k in (0, 3, 29):
+        window = signals[:, k : k + 5].transpose(1, 2).reshape(2, 10)  # (u_{k-4..k}, y_{k-4..k})
+        assert torch.allclose(residual(None, u, y)[:, k], residual.net(window), rtol=0, atol=1e-14)
+
+
 def test_first_order_shift_vanishes_for_an_orthogonal_residual():
     # data = physics + residual on the witness: the residual holds only harmonics 3ω, 5ω...,
     # so re-estimating zeta on y - r (or on y) lands on the same value.
