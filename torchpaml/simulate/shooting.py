@@ -26,8 +26,9 @@ segments rather than single steps: inside a segment the integration stays nonlin
 keeps Newton from diverging when a cubic term dominates.
 
 **Start and cost.** Newton starts from a nearby solution when the caller has one (a fit's previous
-iterate), else from the exact trajectory of a composed model's linear base (:func:`linear_guess`),
-else from $x_0$ held. The stage times and inputs of every step are laid out once per solve, the states
+iterate, a training run's previous step: ``warm``), else from the exact trajectory of the model's
+linear base (:func:`linear_guess`), else from $x_0$ held. Its sweeps take forward differences (n + 1
+rows per segment) until the defects are small, then central ones (2n + 1). The stage times and inputs of every step are laid out once per solve, the states
 are kept state-major (each state's column contiguous: :func:`~torchpaml.physics.state_vector`), and
 each RK4 stage is one fused ``addcmul``, so a step costs little more than its four calls of the physics.
 
@@ -66,7 +67,7 @@ FORWARD_PERTURBATION = 1e-7
 CACHE_ROWS = 32768
 #: Memory up to which a layout keeps the per-step stage times and inputs of its sweeps (repeated per copy).
 STAGE_BYTES = 64 * 2**20
-#: Defect (relative to the state's scale) below which the last Newton update is applied linearly.
+#: Newton's stopping defect (relative to the state's scale); the last update is applied linearly.
 NEWTON_TOL = 1e-9
 #: Defect below which Newton's next sweep is expected to converge (quadratic convergence squares it), so
 #: it takes the central differences whose T feeds gradients.
