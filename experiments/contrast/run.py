@@ -62,7 +62,12 @@ class Run:
     @property
     def group(self) -> str:
         """The name ``--only`` matches: a joint run's without its starting zeta."""
-        return f"{self.scheme}_alpha{self.alpha:g}_{self.residual}"
+        return group_of(self.scheme, self.alpha, self.residual)
+
+
+def group_of(scheme: str, alpha: float, residual: str) -> str:
+    """A run's group name from the fields of its row (see :attr:`Run.group`)."""
+    return f"{scheme}_alpha{alpha:g}_{residual}"
 
 
 def plan(estimate: float) -> list[Run]:
@@ -126,7 +131,7 @@ def contrast(out: Path, quick: bool, only: list[str] | None = None, jobs: int = 
         return not only or any(run.group.startswith(prefix) or run.name.startswith(prefix) for prefix in only)
 
     def kept(group: str) -> list[dict]:
-        return [r for r in existing if f"{r['scheme']}_alpha{r['alpha']:g}_{r['residual']}" == group]
+        return [r for r in existing if group_of(r["scheme"], r["alpha"], r["residual"]) == group]
 
     done: dict[str, dict] = {}
 
