@@ -102,9 +102,7 @@ def output_jacobian(
         def from_state(x):
             return physics(t, u, x)
     else:
-        warm = {} if warm is None else warm
-        solution = solve_rk4(physics, t, u, x0, guess=warm.get("states"), **options)
-        warm["states"] = solution.trajectory
+        solution = solve_rk4(physics, t, u, x0, warm=warm, **options)
         module, arguments = _Tail(physics, solution, x0, u), ()
         raw = {f"physics.{key}": value for key, value in raw.items()}
 

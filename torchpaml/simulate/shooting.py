@@ -28,8 +28,8 @@ keeps Newton from diverging when a cubic term dominates.
 **Start and cost.** Newton starts from a nearby solution when the caller has one (a fit's previous
 iterate, a training run's previous step: ``warm``), else from the exact trajectory of the model's
 linear base (:func:`linear_guess`), else from $x_0$ held. Its sweeps take forward differences (n + 1
-rows per segment) until the defects are small, then central ones (2n + 1). The stage times and inputs of every step are laid out once per solve, the states
-are kept state-major (each state's column contiguous: :func:`~torchpaml.physics.state_vector`), and
+rows per segment) until the defects are small, then central ones (2n + 1). The stage times and inputs
+of every step are laid out once per solve, the states are kept state-major (each state's column contiguous: :func:`~torchpaml.physics.state_vector`), and
 each RK4 stage is one fused ``addcmul``, so a step costs little more than its four calls of the physics.
 
 **Gradients** (reverse and forward mode) come from the implicit function theorem. With the converged
@@ -249,7 +249,8 @@ def _newton(physics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: 
             )
         magnitude = ends.nan_to_num(0.0, 0.0, 0.0).abs().amax(dim=(0, 1))
         scale = torch.where(torch.isfinite(magnitude) & (magnitude > 0), magnitude, scale)
-        defect = float(((ends[:, :-1] - starts[:, 1:]).abs() / scale).nan_to_num(math.inf).max()) if layout.S > 1 else 0.0
+        gaps = (ends[:, :-1] - starts[:, 1:]).abs() / scale
+        defect = float(gaps.nan_to_num(math.inf).max()) if layout.S > 1 else 0.0
         G = result.sensitivities(-1)
         shift = ends[:, :-1] - (G[:, :-1] @ starts[:, :-1, :, None])[..., 0]
         updated = linear_recurrence(G[:, :-1], shift, x0)
@@ -322,6 +323,7 @@ def solve_rk4(
     max_sweeps: int = 16,
     sensitivities: bool = True,
     guess: torch.Tensor | None = None,
+    warm: dict | None = None,
 ) -> RK4Solution:
     """Run Newton to convergence (arguments of :func:`simulate_rk4`), without recording gradients.
 
@@ -330,10 +332,14 @@ def solve_rk4(
     ``guess``: the states (batch, time, n) of a nearby solution (the previous iterate of a fit), whose
     values at the segment starts start Newton. Without it, Newton starts from the linear base's exact
     trajectory (:func:`linear_guess`) where there is one, else from $x_0$ held.
+    ``warm``: a dict the caller keeps between solves of the same record (see :func:`simulate_rk4`); its
+    ``"states"``, when present, are the guess, and this solution's trajectory replaces them.
     """
     if substeps < 1 or segment < 1:
         raise ValueError(f"substeps and segment must be at least 1, got substeps={substeps}, segment={segment}")
     tol = tol if tol is not None else GRADIENT_TOL if sensitivities else NEWTON_TOL
+    if warm is not None and "states" in warm:
+        guess = warm["states"]
     guess = guess if guess is not None else linear_guess(physics, t, u, x0)
     length = segment
     while True:
@@ -343,7 +349,10 @@ def solve_rk4(
                 states, T, starts = _newton(physics, layout, x0.detach(), tol, max_sweeps, sensitivities,
                                             guess)
             # constants of the solution: no_grad stops reverse mode, detach also stops forward mode's tangents
-            return RK4Solution(layout, states.detach(), T, None if starts is None else starts.detach())
+            solution = RK4Solution(layout, states.detach(), T, None if starts is None else starts.detach())
+            if warm is not None:
+                warm["states"] = solution.trajectory
+            return solution
         except _NotConverged:
             length *= GROWTH  # fewer, longer segments; one segment is plain sequential RK4, which always ends
 
@@ -374,9 +383,5 @@ def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, wa
     """
     if len(t) < 2:
         return x0[:, None]
-    differentiable = torch.is_grad_enabled()
-    guess = None if warm is None else warm.get("states")
-    solution = solve_rk4(physics, t, u, x0, sensitivities=differentiable, guess=guess, **options)
-    if warm is not None:
-        warm["states"] = solution.trajectory
+    solution = solve_rk4(physics, t, u, x0, sensitivities=torch.is_grad_enabled(), warm=warm, **options)
     return solution.states(physics, x0)
