@@ -25,7 +25,7 @@ from torchpaml.errors import DataError
 
 from torchpaml.simulate.iir import iir_filter
 
-__all__ = ["exact_step", "foh_discretize", "faddeev_leverrier", "simulate_lti", "uniform_step"]
+__all__ = ["discrete_response", "exact_step", "foh_discretize", "faddeev_leverrier", "simulate_lti", "uniform_step"]
 
 
 def foh_discretize(A: torch.Tensor, B: torch.Tensor, h: float) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -78,14 +78,36 @@ def simulate_lti(
     Returns:
         y: shape (batch, time, p).
     """
-    n, m = B.shape
+    return discrete_response(*foh_discretize(A, B, h), C, D, u, x0)
+
+
+def discrete_response(
+    Phi: torch.Tensor,
+    G0: torch.Tensor,
+    G1: torch.Tensor,
+    C: torch.Tensor,
+    D: torch.Tensor,
+    u: torch.Tensor,
+    x0: torch.Tensor | None = None,
+) -> torch.Tensor:
+    r"""Response of the discrete system $x_{k+1} = \Phi x_k + \Gamma_0 u_k + \Gamma_1 u_{k+1}$, $y_k = C x_k + D u_k$
+    (module docstring), as a transfer function.
+
+    Args:
+        Phi, G0, G1, C, D: shapes (n, n), (n, m), (n, m), (p, n), (p, m).
+        u: input samples, shape (batch, time, m).
+        x0: initial state, shape (batch, n); zero if omitted.
+
+    Returns:
+        y: shape (batch, time, p).
+    """
+    n, m = G0.shape
     p = C.shape[0]
-    Phi, G0, G1 = foh_discretize(A, B, h)
     c, N = faddeev_leverrier(Phi)
     poles = c[1:]
     # numerator of u_i -> y_j over powers z^{n-k}, k = 0..n
     CN = torch.einsum("pn,knl->kpl", C, N)  # (n, p, n)
-    num = torch.zeros(n + 1, p, m, dtype=A.dtype, device=A.device)
+    num = torch.zeros(n + 1, p, m, dtype=Phi.dtype, device=Phi.device)
     num[:n] = num[:n] + CN @ G1
     num[1:] = num[1:] + CN @ G0
     num = num + c[:, None, None] * D[None]
