@@ -85,6 +85,8 @@ def test_bad_bounds_and_nothing_to_fit_are_refused(grid):
         fit_physics(Oscillator(zeta=2.0), records, bounds={"zeta": (0.1, 1.0)})
     with pytest.raises(ValueError, match="no learnable parameter"):
         fit_physics(Oscillator(learn=()), records)
+    with pytest.raises(ValueError, match="start_states needs initial_state='estimate'"):
+        fit_physics(Oscillator(), records, start_states=[torch.zeros(2, dtype=torch.float64)])
 
 
 def test_variable_projection_recovers_a_residual_of_its_own_class(grid):

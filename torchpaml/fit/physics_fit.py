@@ -93,10 +93,12 @@ def fit_physics(
     *,
     bounds: dict[str, tuple[float, float]] | None = None,
     initial_state: Literal["rest", "estimate"] = "rest",
+    start_states: Sequence[torch.Tensor] | None = None,
     max_nfev: int = 60,
+    ftol: float = 1e-10,
     **simulate_options,
 ) -> PhysicsEstimate:
-    """Fit the learnable physical parameters of ``physics`` in place to the records (module docstring).
+    r"""Fit the learnable physical parameters of ``physics`` in place to the records (module docstring).
 
     Args:
         physics: the model; its learnable parameters are fitted, the others stay fixed. With
@@ -105,13 +107,19 @@ def fit_physics(
         bounds: ``{name: (lower, upper)}`` in physical units.
         initial_state: ``"rest"`` (each record starts at rest) or ``"estimate"`` (each record's initial
             state is fitted too, an unbounded unknown per state; see ``PhysicsEstimate.initial_states``).
+        start_states: with ``initial_state="estimate"``, each record's starting guess (n_state,) (default: rest).
         max_nfev: iteration limit of the trust region.
+        ftol: the trust region stops when a step lowers the cost $\tfrac12\|r\|^2$ by less than this share of it
+            (scipy's ``ftol``); the default fits to the last digits, a ranking's refits stop earlier.
         simulate_options: ``substeps``/``segment`` of the RK4 engine.
     """
     if initial_state not in ("rest", "estimate"):
         raise ValueError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
     estimate_x0 = initial_state == "estimate"
     records = [records] if isinstance(records, Experiment) else list(records)
+    if start_states is not None and (not estimate_x0 or len(start_states) != len(records)):
+        raise ValueError(f"start_states needs initial_state='estimate' and one state per record ({len(records)}), got "
+                         f"{len(start_states)} with initial_state={initial_state!r}")
     names = physics.learnable_names()
     if not names and not estimate_x0:
         raise ValueError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")
@@ -162,12 +170,13 @@ def fit_physics(
         except SimulationError:
             return np.full(sum(y.numel() for y in targets), np.inf)
 
-    rest = [physics.initial_state(1)[0].numpy() for _ in records] if estimate_x0 else []
-    start = np.clip(np.concatenate([torch.stack([v.detach() for v in raw]).numpy() if raw else np.zeros(0), *rest]),
+    guesses = [physics.initial_state(1)[0] for _ in records] if start_states is None else start_states
+    guesses = [x.detach().reshape(n_state).numpy() for x in guesses] if estimate_x0 else []
+    start = np.clip(np.concatenate([torch.stack([v.detach() for v in raw]).numpy() if raw else np.zeros(0), *guesses]),
                     lower, upper)
     evaluate(start)  # raises SimulationError, naming the blow-up, at a bad start
     result = least_squares(fun, start, jac=lambda x: evaluate(x)[1], bounds=(lower, upper), method="trf",
-                           x_scale="jac", max_nfev=max_nfev, ftol=1e-10, xtol=1e-10, gtol=1e-10)
+                           x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
     residual, jacobian = evaluate(result.x)
     values = physics.physical_parameters()
     residual, jacobian = torch.from_numpy(residual.copy()), torch.from_numpy(jacobian.copy())
