@@ -370,6 +370,7 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     or blow up). Otherwise the unknowns stay, and the strength is halved while it breaks its constraint
     or blows up the simulation, down to 0. ``ftol`` goes to :func:`~torchpaml.fit.fit_physics`.
     """
+    warm = [{} for _ in train]  # the check's simulations start the fit's first Newton solves
     fit = functools.partial(fit_physics, extended, train, max_nfev=max_nfev, initial_state=initial_state, ftol=ftol)
     if baseline is not None and move is not None:
         own = list(baseline.parameters)
@@ -381,8 +382,8 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
         with torch.no_grad():
             for tensor, delta in zip(raw, move, strict=False):  # the move's tail is the initial states'
                 tensor.add_(delta)
-        if _assigned(extended, name, start) and _training_mismatch(extended, train, moved) < baseline.mismatch:
-            return fit(start_states=moved)
+        if _assigned(extended, name, start) and _training_mismatch(extended, train, moved, warm) < baseline.mismatch:
+            return fit(start_states=moved, warm=warm)
         with torch.no_grad():
             for tensor, value in zip(raw, origin, strict=True):
                 tensor.copy_(value)
@@ -398,11 +399,13 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0")
 
 
-def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None) -> float:
-    """$\|y - \hat y\| / \|y\|$ over the training records from ``states`` (or rest); inf if the simulation blows up."""
+def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None, warm: list[dict]) -> float:
+    r"""$\|y - \hat y\| / \|y\|$ over the training records from ``states`` (or rest); inf if the simulation blows up.
+
+    Each record's RK4 solution is left in its dict of ``warm``."""
     try:
-        errors = [torch.sum((r.y[None] - simulate_record(physics, r, None if states is None else x0)) ** 2)
-                  for r, x0 in zip(train, states or [None] * len(train), strict=True)]
+        errors = [torch.sum((r.y[None] - simulate_record(physics, r, x0, warm=w)) ** 2)
+                  for r, x0, w in zip(train, states or [None] * len(train), warm, strict=True)]
     except SimulationError:
         return math.inf
     return float(torch.sqrt(sum(errors) / sum(torch.sum(r.y**2) for r in train)))

@@ -94,6 +94,7 @@ def fit_physics(
     bounds: dict[str, tuple[float, float]] | None = None,
     initial_state: Literal["rest", "estimate"] = "rest",
     start_states: Sequence[torch.Tensor] | None = None,
+    warm: Sequence[dict] | None = None,
     max_nfev: int = 60,
     ftol: float = 1e-10,
     **simulate_options,
@@ -108,6 +109,8 @@ def fit_physics(
         initial_state: ``"rest"`` (each record starts at rest) or ``"estimate"`` (each record's initial
             state is fitted too, an unbounded unknown per state; see ``PhysicsEstimate.initial_states``).
         start_states: with ``initial_state="estimate"``, each record's starting guess (n_state,) (default: rest).
+        warm: one dict per record that carries the RK4 engine's last solution into the fit's first Newton solve
+            (``simulate(..., warm=)``, e.g. of a simulation at the start); default fresh ones.
         max_nfev: iteration limit of the trust region.
         ftol: the trust region stops when a step lowers the cost $\tfrac12\|r\|^2$ by less than this share of it
             (scipy's ``ftol``); the default fits to the last digits, a ranking's refits stop earlier.
@@ -133,7 +136,7 @@ def fit_physics(
     scale = float(torch.sqrt(sum(torch.sum(y**2) for y in targets)))
     count = {"simulations": 0}
     memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-    warm = [{} for _ in records]  # each record's last solution starts the next Newton solve
+    warm = [{} for _ in records] if warm is None else list(warm)  # each record's last solution starts the next solve
 
     def starts(x: np.ndarray) -> list[torch.Tensor | None]:
         if not estimate_x0:
