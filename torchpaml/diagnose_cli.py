@@ -64,7 +64,7 @@ def diagnose_command(
     fix: list[str] | None = None,
     effects: list[str] | None = None,
     candidates: list[AbstractEffect] | None = None,
-    shortlist: int = 3,
+    shortlist: int = 2,
     criterion: Literal["bic", "aic"] = "bic",
     threshold: float = 10.0,
     min_share: float = 0.05,

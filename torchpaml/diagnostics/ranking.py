@@ -434,7 +434,7 @@ def rank_missing_effects(
     train: Experiment | Sequence[Experiment],
     validation: Experiment | Sequence[Experiment],
     *,
-    shortlist: int = 3,
+    shortlist: int = 2,
     criterion: Literal["bic", "aic"] = "bic",
     threshold: float = 10.0,
     min_share: float = 0.05,
