@@ -25,17 +25,26 @@ from torchpaml.errors import DataError
 
 from torchpaml.simulate.iir import iir_filter
 
-__all__ = ["discrete_response", "exact_step", "foh_discretize", "faddeev_leverrier", "simulate_lti", "uniform_step"]
+__all__ = ["discrete_response", "exact_step", "foh_discretize", "foh_exponent", "faddeev_leverrier", "simulate_lti", "uniform_step"]
+
+
+def foh_exponent(A: torch.Tensor, B: torch.Tensor, h: float, ramp: bool = True) -> torch.Tensor:
+    r"""The matrix whose exponential holds the first-order-hold discretisation (module docstring),
+    (..., n + 2m, n + 2m) for A (..., n, n) and B (..., n, m). ``ramp=False`` leaves out the input ramp's
+    constant identity block: the exponent's derivative along a change (dA, dB) is ``foh_exponent(dA, dB, h, False)``."""
+    n, m = B.shape[-2:]
+    M = torch.zeros(*A.shape[:-2], n + 2 * m, n + 2 * m, dtype=A.dtype, device=A.device)
+    M[..., :n, :n] = A * h
+    M[..., :n, n : n + m] = B * h
+    if ramp:
+        M[..., n : n + m, n + m :] = torch.eye(m, dtype=A.dtype, device=A.device)
+    return M
 
 
 def foh_discretize(A: torch.Tensor, B: torch.Tensor, h: float) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     r"""$(\Phi, \Gamma_0, \Gamma_1)$ of the first-order-hold discretisation; A (n, n), B (n, m)."""
     n, m = B.shape
-    M = torch.zeros(n + 2 * m, n + 2 * m, dtype=A.dtype, device=A.device)
-    M[:n, :n] = A * h
-    M[:n, n : n + m] = B * h
-    M[n : n + m, n + m :] = torch.eye(m, dtype=A.dtype, device=A.device)
-    E = torch.linalg.matrix_exp(M)
+    E = torch.linalg.matrix_exp(foh_exponent(A, B, h))
     Phi, Gamma_a, Gamma_b = E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
     return Phi, Gamma_a - Gamma_b, Gamma_b
 
