@@ -111,8 +111,35 @@ def test_adjoint_gradient_matches_direct_backprop(grid):
     assert torch.allclose(grads[0], grads[1], rtol=1e-5)  # both within solver tolerance of the truth
 
 
-@pytest.mark.parametrize("zeta", [0.3, 1.0])  # 1.0: critical damping, a repeated eigenvalue
-def test_exact_jacobian_matches_reverse_mode_autograd(zeta):
+def test_zero_order_hold_matches_scipy_lsim_and_rk4_converges_to_it():
+    # the input held constant between samples (a DAC): the exact path against scipy's lsim(interp=False), from a
+    # state not at rest, to 1e-12; RK4 on the same hold (a composed model at zero strength takes the RK4 path)
+    # converges to it at fourth order: 8 substeps divide its error by 8^4 = 4096 (held to > 2000)
+    import numpy as np
+    from scipy.signal import lsim
+
+    from torchpaml.physics import CubicStiffness
+
+    t = torch.arange(400, dtype=torch.float64) * 0.1
+    u = (torch.sin(0.7 * t) + (torch.arange(400) % 7 == 0).double())[None, :, None]  # steps: the holds differ
+    physics = Oscillator(zeta=0.3, omega0=1.5, gain=2.0)
+    x0 = torch.tensor([[0.3, -0.2]], dtype=torch.float64)
+    A, B, C, D = (m.detach().numpy() for m in physics.state_space())
+    with torch.no_grad():
+        exact = simulate(physics, t, u, x0, hold="zoh")[0, :, 0]
+        first_order = simulate(physics, t, u, x0)[0, :, 0]
+        errors = [float((simulate(physics + CubicStiffness(0.0), t, u, x0, method="rk4", hold="zoh", substeps=m)[0, :, 0]
+                         - exact).abs().max()) for m in (1, 8)]
+    _, oracle, _ = lsim((A, B, C, D), u[0, :, 0].numpy(), t.numpy(), X0=x0[0].numpy(), interp=False)
+    assert np.abs(exact.numpy() - oracle).max() < 1e-12
+    assert float((exact - first_order).abs().max()) > 0.02  # the hold matters on this input (0.049)
+    assert errors[0] < 1e-5 and errors[0] / errors[1] > 2000
+    with pytest.raises(ValueError, match="hold='zoh' is simulated by the exact path and by 'rk4'"):
+        simulate(physics + CubicStiffness(0.0), t, u, x0, method="dopri5", hold="zoh")
+
+
+@pytest.mark.parametrize("zeta, hold", [(0.3, "foh"), (1.0, "foh"), (0.3, "zoh")])  # 1.0: critical damping
+def test_exact_jacobian_matches_reverse_mode_autograd(zeta, hold):
     # the exact path's Jacobian comes from the discretisation's sensitivity recurrence (one filter run for every
     # column); the oracle is reverse-mode autograd through the exact simulation. Two records, not at rest, and the
     # initial state's columns, whose oracle is the free response C Phi^k e_i
@@ -125,17 +152,18 @@ def test_exact_jacobian_matches_reverse_mode_autograd(zeta):
     u = torch.cat([multisine(t, 1.0, [0.05, 0.1, 0.3], seed=seed) for seed in (0, 1)])
     physics = Oscillator(zeta=zeta, omega0=1.7, gain=2.0, learn=("zeta", "omega0", "gain"))
     x0 = torch.tensor([[0.2, -0.1], [0.0, 0.3]], dtype=torch.float64)
-    y, J = output_jacobian(physics, physics.learnable_names(), t, u, x0, initial_state=True)
+    y, J = output_jacobian(physics, physics.learnable_names(), t, u, x0, initial_state=True, hold=hold)
     raw = raw_parameters(physics, physics.learnable_names())
 
     def output(*values):  # the raw parameters, then x0
-        return functional_call(physics, dict(zip(raw, values[:-1], strict=True)), (t, u, values[-1]))[..., 0]
+        return functional_call(physics, dict(zip(raw, values[:-1], strict=True)), (t, u, values[-1]),
+                               {"hold": hold})[..., 0]
 
     expected = torch.autograd.functional.jacobian(output, (*(v.detach() for v in raw.values()), x0))
     oracle = torch.stack(expected[:3], dim=-1)  # (record, time, parameter)
     free = torch.stack([torch.stack([expected[3][b, :, b, i] for b in range(2)]) for i in range(2)], dim=-1)
     scale = float(oracle.abs().max())
     with torch.no_grad():
-        assert torch.allclose(y, physics(t, u, x0), rtol=0, atol=1e-14)
+        assert torch.allclose(y, physics(t, u, x0, hold=hold), rtol=0, atol=1e-14)
     assert float((J[:, :, 0, :3] - oracle).abs().max()) < 1e-9 * scale
     assert float((J[:, :, 0, 3:] - free).abs().max()) < 1e-9 * float(free.abs().max())

@@ -15,6 +15,10 @@ damping). The z-transform of the recursion carries the boundary term $-z\Gamma_1
 transfer function alone starts from the state $\Gamma_1 u_0$; the free response to
 $x_0 - \Gamma_1 u_0$, $\sum_k z^{-k} C\Phi^k (x_0 - \Gamma_1 u_0) = z\,C\,\mathrm{adj}(zI-\Phi)(x_0 - \Gamma_1 u_0)/p(z)$,
 is added to start from $x_0$ exactly.
+
+**Zero-order hold.** Where the input is held constant between samples (``hold="zoh"``: a DAC playing
+a sampled signal, as in the cascaded-tanks benchmark), the same exponential gives
+$x_{k+1} = \Phi x_k + \Gamma_a u_k$: $\Gamma_0 = \Gamma_a$ and $\Gamma_1 = 0$.
 """
 
 from __future__ import annotations
@@ -25,7 +29,20 @@ from torchpaml.errors import DataError
 
 from torchpaml.simulate.iir import iir_filter
 
-__all__ = ["discrete_response", "exact_step", "foh_discretize", "foh_exponent", "faddeev_leverrier", "simulate_lti", "uniform_step"]
+__all__ = ["HOLDS", "check_hold", "discrete_response", "discretize", "exact_step", "foh_exponent", "faddeev_leverrier",
+           "simulate_lti", "uniform_step"]
+
+#: How the input moves between two samples: ``"foh"`` (first-order hold, linear: the default) or ``"zoh"``
+#: (zero-order hold, constant until the next sample).
+HOLDS = ("foh", "zoh")
+
+
+def check_hold(hold: str) -> str:
+    """``hold`` itself; a ``ValueError`` naming the choices if it is not one of :data:`HOLDS`."""
+    if hold not in HOLDS:
+        raise ValueError(f"hold must be 'foh' (the input linear between samples) or 'zoh' (held constant until the "
+                         f"next sample), got {hold!r}")
+    return hold
 
 
 def foh_exponent(A: torch.Tensor, B: torch.Tensor, h: float, ramp: bool = True) -> torch.Tensor:
@@ -41,11 +58,14 @@ def foh_exponent(A: torch.Tensor, B: torch.Tensor, h: float, ramp: bool = True) 
     return M
 
 
-def foh_discretize(A: torch.Tensor, B: torch.Tensor, h: float) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    r"""$(\Phi, \Gamma_0, \Gamma_1)$ of the first-order-hold discretisation; A (n, n), B (n, m)."""
+def discretize(A: torch.Tensor, B: torch.Tensor, h: float, hold: str = "foh"
+               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    r"""$(\Phi, \Gamma_0, \Gamma_1)$ of the exact discretisation for the input's ``hold``; A (n, n), B (n, m)."""
     n, m = B.shape
     E = torch.linalg.matrix_exp(foh_exponent(A, B, h))
     Phi, Gamma_a, Gamma_b = E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
+    if check_hold(hold) == "zoh":
+        return Phi, Gamma_a, torch.zeros_like(Gamma_b)
     return Phi, Gamma_a - Gamma_b, Gamma_b
 
 
@@ -75,19 +95,21 @@ def simulate_lti(
     h: float,
     u: torch.Tensor,
     x0: torch.Tensor | None = None,
+    hold: str = "foh",
 ) -> torch.Tensor:
-    r"""Exact response of $(A, B, C, D)$ to the piecewise-linear input through samples ``u``.
+    r"""Exact response of $(A, B, C, D)$ to the input through samples ``u``, held as ``hold`` says.
 
     Args:
         A, B, C, D: state-space matrices, shapes (n, n), (n, m), (p, n), (p, m).
         h: sampling interval in seconds (uniform).
         u: input samples, shape (batch, time, m).
         x0: initial state, shape (batch, n); zero if omitted.
+        hold: ``"foh"`` (linear between samples) or ``"zoh"`` (constant until the next one).
 
     Returns:
         y: shape (batch, time, p).
     """
-    return discrete_response(*foh_discretize(A, B, h), C, D, u, x0)
+    return discrete_response(*discretize(A, B, h, hold), C, D, u, x0)
 
 
 def discrete_response(

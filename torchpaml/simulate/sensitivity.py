@@ -39,7 +39,7 @@ from torch import nn
 from torch.func import functional_call
 
 from torchpaml.simulate.shooting import RK4Solution, solve_rk4
-from torchpaml.simulate.lti import discrete_response, foh_discretize, foh_exponent
+from torchpaml.simulate.lti import check_hold, discrete_response, discretize, foh_exponent
 from torchpaml.simulate.simulator import checked_output, exact_step
 
 if TYPE_CHECKING:
@@ -60,9 +60,11 @@ def raw_parameters(physics, names: Sequence[str]) -> dict[str, torch.Tensor]:
 
 
 def simulate_record(physics, record: Experiment, x0: torch.Tensor | None = None, **options) -> torch.Tensor:
-    """The model's output on one record from ``x0`` (n_state,) or rest, (1, time, n_output), without gradients."""
+    """The model's output on one record from ``x0`` (n_state,) or rest, (1, time, n_output), without gradients;
+    the input held as the record's ``hold`` says."""
     with torch.no_grad():
-        return physics(record.t - record.t[0], record.u[None], None if x0 is None else x0.reshape(1, -1), **options)
+        return physics(record.t - record.t[0], record.u[None], None if x0 is None else x0.reshape(1, -1),
+                       hold=record.hold, **options)
 
 
 class _Tail(nn.Module):
@@ -94,8 +96,9 @@ class _StateSpace(nn.Module):
         return [part.reshape(*flat.shape[:-1], *shape) for part, shape in zip(parts, shapes, strict=True)]
 
 
-def _discretised_derivatives(physics, raw: dict[str, torch.Tensor], h: float):
-    r"""$(\Phi, \Gamma_0, \Gamma_1, C, D)$ and their derivatives in each raw parameter, stacked (p, ...).
+def _discretised_derivatives(physics, raw: dict[str, torch.Tensor], h: float, hold: str):
+    r"""$(\Phi, \Gamma_0, \Gamma_1, C, D)$ for the input's ``hold`` and their derivatives in each raw parameter,
+    stacked (p, ...).
 
     The derivatives of (A, B, C, D) are central differences; those of the discretisation follow from
     the Fréchet derivative of the exponential, $\exp\begin{pmatrix} M & E \\ 0 & M\end{pmatrix} =
@@ -104,7 +107,7 @@ def _discretised_derivatives(physics, raw: dict[str, torch.Tensor], h: float):
     """
     module = _StateSpace(physics)
     A, B, C, D = module.unflatten(module())
-    Phi, G0, G1 = foh_discretize(A, B, h)
+    Phi, G0, G1 = discretize(A, B, h, hold)
     flats = [_directional(lambda r, key=key: functional_call(module, {f"physics.{key}": r}, ()), value.detach(),
                           torch.ones_like(value)) for key, value in raw.items()]
     if not flats:
@@ -117,14 +120,16 @@ def _discretised_derivatives(physics, raw: dict[str, torch.Tensor], h: float):
     blocks[:, :size, size:] = foh_exponent(dA, dB, h, ramp=False)
     L = torch.linalg.matrix_exp(blocks)[:, :n, size:]
     dPhi, dGa, dGb = L[..., :n], L[..., n : n + m], L[..., n + m :]
+    if hold == "zoh":
+        return (Phi, G0, G1, C, D), (dPhi, dGa, torch.zeros_like(dGb), dC, dD)
     return (Phi, G0, G1, C, D), (dPhi, dGa - dGb, dGb, dC, dD)
 
 
 def _exact_jacobian(physics, raw: dict[str, torch.Tensor], h: float, t: torch.Tensor, u: torch.Tensor,
-                    x0: torch.Tensor, initial_state: bool) -> tuple[torch.Tensor, torch.Tensor]:
+                    x0: torch.Tensor, initial_state: bool, hold: str) -> tuple[torch.Tensor, torch.Tensor]:
     """:func:`output_jacobian` on the exact path, by the sensitivity recurrence (module docstring)."""
     with torch.no_grad():
-        (Phi, G0, G1, C, D), derivatives = _discretised_derivatives(physics, raw, h)
+        (Phi, G0, G1, C, D), derivatives = _discretised_derivatives(physics, raw, h, hold)
         n, batch = Phi.shape[0], u.shape[0]
         eye, zeros = torch.eye(n, dtype=Phi.dtype), torch.zeros(n, n, dtype=Phi.dtype)
         states = discrete_response(Phi, G0, G1, eye, zeros[:, : G0.shape[1]], u, x0)  # (batch, time, n)
@@ -159,7 +164,7 @@ def _directional(function, value: torch.Tensor, direction: torch.Tensor) -> torc
 
 def output_jacobian(
     physics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
-    warm: dict | None = None, initial_state: bool = False, **options
+    warm: dict | None = None, initial_state: bool = False, hold: str = "foh", **options
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Output and its Jacobian in the raw parameters ``names`` (module docstring).
 
@@ -170,6 +175,7 @@ def output_jacobian(
         warm: a dict the caller keeps between calls on the same record (a fit's iterations): the RK4
             path stores its converged states under ``"states"`` and starts the next Newton solve from them.
         initial_state: also differentiate in ``x0``.
+        hold: ``"foh"`` or ``"zoh"``, how the input moves between samples (:func:`~torchpaml.simulate.simulate`).
         options: ``substeps``/``segment`` of the RK4 engine.
 
     Returns:
@@ -184,8 +190,8 @@ def output_jacobian(
                          f"{sorted(physics.physical_parameters())}")
     h = exact_step(physics, t)
     if h is not None:  # the same routing as simulate(method="auto")
-        return _exact_jacobian(physics, raw, h, t, u, x0.detach(), initial_state)
-    solution = solve_rk4(physics, t, u, x0, warm=warm, **options)
+        return _exact_jacobian(physics, raw, h, t, u, x0.detach(), initial_state, check_hold(hold))
+    solution = solve_rk4(physics, t, u, x0, warm=warm, hold=hold, **options)
     module = _Tail(physics, solution, x0, u)
     raw = {f"physics.{key}": value for key, value in raw.items()}
 

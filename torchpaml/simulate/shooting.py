@@ -5,8 +5,8 @@ small ODE is about a hundred operations, so a sample-by-sample loop costs ~200 Â
 it carries 1 row or 1000. The cost is the number of *sequential* steps, so this engine makes them few.
 
 **The step.** Between samples $t_k$ and $t_{k+1}$ ($h_k = t_{k+1} - t_k$, any spacing) the input is the
-first-order hold $u(\tau) = u_k + (\tau - t_k)(u_{k+1} - u_k)/h_k$, the hold the exact LTI path
-assumes. ``substeps`` classical RK4 steps of $h_k/m$ advance the state; the global error is
+first-order hold $u(\tau) = u_k + (\tau - t_k)(u_{k+1} - u_k)/h_k$ (or, with ``hold="zoh"``, $u_k$
+held), the hold the exact LTI path assumes. ``substeps`` classical RK4 steps of $h_k/m$ advance the state; the global error is
 $O(h^4)$ (tested: halving $h$ divides it by 16).
 
 **Multiple shooting.** The $N - 1$ steps are cut into $S$ segments of $L$ steps. From guesses $\xi_s$ of
@@ -50,7 +50,7 @@ import torch
 from torch.nn.utils import parametrize
 
 from torchpaml.errors import SimulationError
-from torchpaml.simulate.lti import exact_step, simulate_lti
+from torchpaml.simulate.lti import check_hold, exact_step, simulate_lti
 from torchpaml.simulate.scan import linear_recurrence
 
 __all__ = ["RK4Solution", "SEGMENT_STEPS", "simulate_rk4", "solve_rk4"]
@@ -108,7 +108,7 @@ def _rk4_sweep(physics, x: torch.Tensor, stages, substeps: int) -> torch.Tensor:
 class _Layout:
     """The record cut into S segments of L steps, padded at the end with steps of length 0."""
 
-    def __init__(self, t: torch.Tensor, u: torch.Tensor, segment: int, substeps: int):
+    def __init__(self, t: torch.Tensor, u: torch.Tensor, segment: int, substeps: int, hold: str = "foh"):
         batch, N, m = u.shape
         steps = N - 1
         segment = max(segment, math.ceil(batch * steps * 3 / CACHE_ROWS))
@@ -125,7 +125,7 @@ class _Layout:
         fractions = torch.arange(2 * substeps + 1, dtype=t.dtype) / (2 * substeps)
         self._times = t0[:, None] + fractions[:, None] * h[:, None]
         rows = lambda v: v.reshape(batch * self.S, self.L, m).transpose(0, 1)  # noqa: E731  (L, batch * S, m)
-        start, change = rows(u0), rows(u1 - u0)
+        start, change = rows(u0), rows(u1 - u0 if hold == "foh" else torch.zeros_like(u0))
         self._inputs = start[:, None] + fractions[:, None, None] * change[:, None]
         self._steps = (h / substeps)[:, None, :, None] * torch.tensor([0.5, 1.0, 1 / 6], dtype=t.dtype)[:, None, None]
         self._stages: dict[int, list] = {}
@@ -262,7 +262,8 @@ def _newton(physics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: 
     raise _NotConverged
 
 
-def linear_guess(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor) -> torch.Tensor | None:
+def linear_guess(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, hold: str = "foh"
+                 ) -> torch.Tensor | None:
     r"""The states (batch, time, n) of the model's linear base (:meth:`~torchpaml.physics.AbstractPhysics.linear_base`:
     the base of physics + effects, the physics under a learned force), by the exact path, driven by the same
     input; ``None`` where there is no linear base or the grid is not uniform.
@@ -277,7 +278,7 @@ def linear_guess(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor) ->
     with torch.no_grad():
         A, B, _, _ = base.state_space()
         n, m = B.shape
-        return simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, m, dtype=A.dtype), h, u, x0)
+        return simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, m, dtype=A.dtype), h, u, x0, hold)
 
 
 class _NotConverged(Exception):
@@ -324,6 +325,7 @@ def solve_rk4(
     sensitivities: bool = True,
     guess: torch.Tensor | None = None,
     warm: dict | None = None,
+    hold: str = "foh",
 ) -> RK4Solution:
     """Run Newton to convergence (arguments of :func:`simulate_rk4`), without recording gradients.
 
@@ -334,16 +336,18 @@ def solve_rk4(
     trajectory (:func:`linear_guess`) where there is one, else from $x_0$ held.
     ``warm``: a dict the caller keeps between solves of the same record (see :func:`simulate_rk4`); its
     ``"states"``, when present, are the guess, and this solution's trajectory replaces them.
+    ``hold``: ``"foh"`` or ``"zoh"`` (module docstring).
     """
+    check_hold(hold)
     if substeps < 1 or segment < 1:
         raise ValueError(f"substeps and segment must be at least 1, got substeps={substeps}, segment={segment}")
     tol = tol if tol is not None else GRADIENT_TOL if sensitivities else NEWTON_TOL
     if warm is not None and "states" in warm:
         guess = warm["states"]
-    guess = guess if guess is not None else linear_guess(physics, t, u, x0)
+    guess = guess if guess is not None else linear_guess(physics, t, u, x0, hold)
     length = segment
     while True:
-        layout = _Layout(t, u, length, substeps)
+        layout = _Layout(t, u, length, substeps, hold)
         try:
             with torch.no_grad():
                 states, T, starts = _newton(physics, layout, x0.detach(), tol, max_sweeps, sensitivities,
@@ -375,7 +379,8 @@ def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, wa
             continuity defect is below ``tol`` times the state's scale; default :data:`NEWTON_TOL`, or
             :data:`GRADIENT_TOL` when grad mode is on), ``max_sweeps`` (sweeps before
             Newton gives up and the segments are made :data:`GROWTH` times longer, for chaotic or very
-            stiff records; in the limit one segment, plain sequential RK4).
+            stiff records; in the limit one segment, plain sequential RK4), ``hold`` (``"foh"``, the input
+            linear between samples, or ``"zoh"``, held constant).
 
     Returns:
         states: (batch, time, n_state), differentiable in the parameters, ``u`` and ``x0`` (reverse and

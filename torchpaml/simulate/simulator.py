@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 
 from torchpaml.errors import DataError, SimulationError
-from torchpaml.simulate.lti import exact_step, simulate_lti, uniform_step
+from torchpaml.simulate.lti import check_hold, exact_step, simulate_lti, uniform_step
 from torchpaml.simulate.ode import simulate_ode
 from torchpaml.simulate.shooting import SEGMENT_STEPS, simulate_rk4
 
@@ -28,8 +28,9 @@ def simulate(
     segment: int = SEGMENT_STEPS,
     blowup: float = 1e8,
     warm: dict | None = None,
+    hold: str = "foh",
 ) -> torch.Tensor:
-    r"""Simulate $y = \mathcal H^\theta[u]$ for the piecewise-linear input through the samples.
+    r"""Simulate $y = \mathcal H^\theta[u]$ for the input through the samples, held as ``hold`` says.
 
     Args:
         physics: an :class:`~torchpaml.physics.AbstractPhysics`.
@@ -48,6 +49,8 @@ def simulate(
         warm: a dict kept by the caller between simulations of the same record (``"rk4"``): Newton
             starts from the states the previous one stored there (see
             :func:`~torchpaml.simulate.shooting.simulate_rk4`). The result does not depend on it.
+        hold: ``"foh"`` (the input linear between samples) or ``"zoh"`` (held constant until the next
+            sample); the exact path and ``"rk4"`` take either, torchdiffeq's solvers ``"foh"`` only.
 
     Returns:
         y: shape (batch, time, n_output). Differentiable in the physical parameters and ``u``.
@@ -55,6 +58,9 @@ def simulate(
     if u.dim() != 3 or u.shape[1] != t.shape[-1]:
         raise DataError(f"u must have shape (batch, time={t.shape[-1]}, channel), got {tuple(u.shape)}")
     x0 = physics.initial_state(u.shape[0]).to(u) if x0 is None else x0
+    if check_hold(hold) == "zoh" and method not in ("auto", "exact", "rk4"):
+        raise ValueError(f"hold='zoh' is simulated by the exact path and by 'rk4', not by {method!r}, whose "
+                         "interpolant is first-order; use method='rk4' (with substeps=) or 'auto'")
     if method == "exact":
         if physics.state_space() is None:
             raise ValueError(f"method='exact' needs linear physics; {type(physics).__name__} is nonlinear. Use 'rk4'")
@@ -62,9 +68,9 @@ def simulate(
     else:
         h = exact_step(physics, t) if method == "auto" else None
     if h is not None:
-        return checked_output(simulate_lti(*physics.state_space(), h, u, x0), t, blowup)
+        return checked_output(simulate_lti(*physics.state_space(), h, u, x0, hold), t, blowup)
     if method in ("auto", "rk4"):
-        states = simulate_rk4(physics, t, u, x0, warm, substeps=substeps, segment=segment)
+        states = simulate_rk4(physics, t, u, x0, warm, substeps=substeps, segment=segment, hold=hold)
         return checked_output(physics.output(states, u), t, blowup)
     states = simulate_ode(
         physics, t, u, x0, method=method, rtol=rtol, atol=atol, adjoint=adjoint, max_num_steps=max_num_steps,
