@@ -56,3 +56,10 @@ def test_file_sources_name_the_problem():
         Files([])
     with pytest.raises(DataError, match="test split is empty"):
         ExperimentDataModule(Simulated(truth(), duration=5.0)).test_dataloader()
+
+
+def test_a_zero_order_hold_record_is_refused_by_the_lightning_systems_data(tmp_path):
+    t = torch.arange(20, dtype=torch.float64) * 0.1
+    path = Experiment(t, torch.sin(t), torch.cos(t), "held", {"hold": "zoh"}).to_csv(tmp_path / "held.csv")
+    with pytest.raises(DataError, match="hold their input constant between samples"):
+        ExperimentDataModule(Files([str(path)])).records("train")

@@ -1,5 +1,6 @@
 """Experiment I/O round trips."""
 
+import pytest
 import torch
 
 from torchpaml import Experiment
@@ -28,3 +29,15 @@ def test_batch_shapes_and_dt():
     t, u, y = _experiment().batch()
     assert t.shape == (50,) and u.shape == (1, 50, 1) and y.shape == (1, 50, 1)
     assert abs(_experiment().dt - 0.1) < 1e-12
+
+
+def test_hold_is_checked_read_from_metadata_and_kept_by_windows(tmp_path):
+    t = torch.arange(10, dtype=torch.float64) * 0.1
+    with pytest.raises(ValueError, match="hold must be 'foh'"):
+        Experiment(t, t, t, hold="linear")
+    path = Experiment(t, t, t, "held", {"hold": "zoh"}).to_csv(tmp_path / "held.csv")
+    record = Experiment.from_csv(path)
+    assert record.hold == "zoh"
+    assert Experiment.from_csv(path, hold="foh").hold == "foh"  # the argument wins over the metadata
+    part = record.window(2, 6, "part")
+    assert (part.hold, part.name, len(part.t)) == ("zoh", "part", 4)

@@ -11,6 +11,7 @@ import numpy as np
 import torch
 
 from torchpaml.errors import DataError
+from torchpaml.simulate.lti import check_hold
 from torchpaml.simulate.simulator import uniform_step
 
 __all__ = ["Experiment"]
@@ -22,6 +23,10 @@ _COLUMNS = ("t", "u", "y")
 class Experiment:
     """One record of a device: time t (time,) in s, input u (time, n_u), output y (time, n_y), float64.
 
+    ``hold`` says how the input moved between samples: ``"foh"`` (linearly, the default) or ``"zoh"``
+    (held constant until the next sample, as a DAC plays a sampled signal); every simulation of the
+    record (fits, rankings, scores) holds it so.
+
     ``validate`` runs on construction: the lengths agree, values are finite, time strictly increases.
     Use :meth:`batch` to get the (1, time, channel) tensors the models take.
     """
@@ -31,11 +36,13 @@ class Experiment:
     y: torch.Tensor
     name: str = "experiment"
     metadata: dict = field(default_factory=dict)
+    hold: str = "foh"
 
     def __post_init__(self):
         self.t = torch.as_tensor(self.t, dtype=torch.float64).detach().reshape(-1)
         self.u = _as_columns(self.u, "u")
         self.y = _as_columns(self.y, "y")
+        check_hold(self.hold)
         self.validate()
 
     def validate(self) -> None:
@@ -88,6 +95,11 @@ class Experiment:
             "simulate records with missing samples directly"
         )
 
+    def window(self, start: int | None = None, stop: int | None = None, name: str | None = None) -> Experiment:
+        """Samples ``start:stop`` as an experiment of their own (named ``name``, else this one's), with its hold."""
+        return Experiment(self.t[start:stop], self.u[start:stop], self.y[start:stop], name or self.name, self.metadata,
+                          self.hold)
+
     def batch(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(t (time,), u (1, time, n_u), y (1, time, n_y))``."""
         return self.t, self.u[None], self.y[None]
@@ -99,8 +111,10 @@ class Experiment:
 
     # -- I/O ---------------------------------------------------------------------------------
     @classmethod
-    def from_csv(cls, path: str | Path, name: str | None = None) -> Experiment:
-        """Read a CSV with header ``t,u,y`` (extra columns ignored; a first ``# {json}`` line is metadata)."""
+    def from_csv(cls, path: str | Path, name: str | None = None, hold: str | None = None) -> Experiment:
+        """Read a CSV with header ``t,u,y`` (extra columns ignored; a first ``# {json}`` line is metadata).
+
+        ``hold``: how the input moved between samples; default the metadata's ``"hold"``, else ``"foh"``."""
         path = Path(path)
         if not path.exists():
             raise DataError(f"no such file: {path}")
@@ -127,7 +141,8 @@ class Experiment:
         if table.ndim != 2 or table.shape[1] != len(header):
             raise DataError(f"{path}: every row must have {len(header)} values like the header")
         columns = {h: table[:, i] for i, h in enumerate(header)}
-        return cls(columns["t"], columns["u"], columns["y"], name or path.stem, metadata)
+        return cls(columns["t"], columns["u"], columns["y"], name or path.stem, metadata,
+                   hold or metadata.get("hold", "foh"))
 
     def to_csv(self, path: str | Path) -> Path:
         """Write ``t,u,y`` (single-channel u and y), with the metadata as a first ``# {json}`` line."""
@@ -143,8 +158,9 @@ class Experiment:
         return path
 
     @classmethod
-    def from_npz(cls, path: str | Path, name: str | None = None) -> Experiment:
-        """Read arrays ``t``, ``u``, ``y`` (and optional JSON ``metadata``) from an NPZ file."""
+    def from_npz(cls, path: str | Path, name: str | None = None, hold: str | None = None) -> Experiment:
+        """Read arrays ``t``, ``u``, ``y`` (and optional JSON ``metadata``) from an NPZ file; ``hold`` as in
+        :meth:`from_csv`."""
         path = Path(path)
         if not path.exists():
             raise DataError(f"no such file: {path}")
@@ -153,7 +169,8 @@ class Experiment:
             if missing:
                 raise DataError(f"{path}: missing array(s) {missing}; it holds {archive.files}, expected t, u, y")
             metadata = json.loads(str(archive["metadata"])) if "metadata" in archive.files else {}
-            return cls(archive["t"], archive["u"], archive["y"], name or path.stem, metadata)
+            return cls(archive["t"], archive["u"], archive["y"], name or path.stem, metadata,
+                       hold or metadata.get("hold", "foh"))
 
     def to_npz(self, path: str | Path) -> Path:
         path = Path(path)

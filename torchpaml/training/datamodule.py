@@ -83,7 +83,13 @@ class ExperimentDataModule(L.LightningDataModule):
             raise ValueError(f"unknown split {split!r}; use one of {SPLITS}")
         if split not in self._records:
             source = self.sources[split]
-            self._records[split] = [] if source is None else source.experiments()
+            records = [] if source is None else source.experiments()
+            held = [r.name for r in records if r.hold != "foh"]
+            if held:
+                raise DataError(f"experiment(s) {held} hold their input constant between samples (hold='zoh'), but "
+                                "the Lightning systems simulate the input linear between samples; diagnose or fit "
+                                "them with torchpaml diagnose / fit_physics, which take either hold")
+            self._records[split] = records
         return self._records[split]
 
     def items(self, split: str, windows: bool = True) -> list[dict]:
