@@ -241,8 +241,8 @@ class TangentLinear:
                 h = uniform_step(record.t)
                 u = record.u[None]
                 states = simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, B.shape[1], dtype=A.dtype), h, u,
-                                      x0.reshape(1, n))
-                self.records.append((record.t - record.t[0], u, states, h))
+                                      x0.reshape(1, n), record.hold)
+                self.records.append((record.t - record.t[0], u, states, h, record.hold))
 
     @classmethod
     def of(cls, base, train: list[Experiment], initial_states: list[torch.Tensor]) -> TangentLinear | None:
@@ -270,7 +270,7 @@ class TangentLinear:
         n = self.A.shape[0]
         parts = []
         with torch.no_grad():
-            for t, u, states, h in self.records:
+            for t, u, states, h, hold in self.records:
                 x, w = states[0], u[0]
                 extras, maps = [], []
                 for setting in settings:
@@ -278,7 +278,8 @@ class TangentLinear:
                     extras.append(extended.derivative(t, x, w) - self.base.derivative(t, x, w))
                     maps.append(extended.output(states, u)[0])
                 response = simulate_lti(self.A, torch.eye(n, dtype=self.A.dtype), self.C,
-                                        torch.zeros(self.C.shape[0], n, dtype=self.A.dtype), h, torch.stack(extras))
+                                        torch.zeros(self.C.shape[0], n, dtype=self.A.dtype), h, torch.stack(extras),
+                                        hold=hold)
                 parts.append((response + torch.stack(maps)).flatten(1))
         return list(torch.cat(parts, dim=1))
 
@@ -295,15 +296,16 @@ class Secant:
         self.records = []
         with torch.no_grad():
             for record, x0 in zip(train, initial_states, strict=True):
-                t, u, start = record.t - record.t[0], record.u[None], x0.reshape(1, -1)
-                self.records.append((t, u, start, solve_rk4(base, t, u, start, sensitivities=False).trajectory))
+                t, u, start, hold = record.t - record.t[0], record.u[None], x0.reshape(1, -1), record.hold
+                guess = solve_rk4(base, t, u, start, sensitivities=False, hold=hold).trajectory
+                self.records.append((t, u, start, hold, guess))
 
     def outputs(self, extended) -> torch.Tensor:
         """The outputs of ``extended`` on the training records, concatenated."""
         parts = []
         with torch.no_grad():
-            for t, u, start, guess in self.records:
-                states = solve_rk4(extended, t, u, start, sensitivities=False, guess=guess).trajectory
+            for t, u, start, hold, guess in self.records:
+                states = solve_rk4(extended, t, u, start, sensitivities=False, guess=guess, hold=hold).trajectory
                 parts.append(checked_output(extended.output(states, u), t).flatten())
         return torch.cat(parts)
 

@@ -66,9 +66,10 @@ def fit_neural_force(
     frozen.set_learnable(*frozen.learnable_names(), learn=False)
     starts = [frozen.initial_state(1) if x0 is None else x0.reshape(1, -1)
               for x0 in (initial_states or [None] * len(records))]
-    grids = [(r.t - r.t[0], r.u[None]) for r in records]
+    grids = [(r.t - r.t[0], r.u[None], r.hold) for r in records]
     with torch.no_grad():
-        states = torch.cat([simulate_rk4(frozen, t, u, x0)[0] for (t, u), x0 in zip(grids, starts, strict=True)])
+        states = torch.cat([simulate_rk4(frozen, t, u, x0, hold=hold)[0]
+                            for (t, u, hold), x0 in zip(grids, starts, strict=True)])
     inputs = torch.cat([r.u[:, 0] for r in records])
     scales = [float(s.std()) or 1.0 for s in (states[:, 0], states[:, 1], inputs)]
     with torch.random.fork_rng():
@@ -78,8 +79,8 @@ def fit_neural_force(
     warm = [{} for _ in records]
 
     def predict() -> torch.Tensor:
-        return torch.cat([simulate(model, t, u, x0, method="rk4", warm=w).flatten()
-                          for (t, u), x0, w in zip(grids, starts, warm, strict=True)])
+        return torch.cat([simulate(model, t, u, x0, method="rk4", warm=w, hold=hold).flatten()
+                          for (t, u, hold), x0, w in zip(grids, starts, warm, strict=True)])
 
     target = torch.cat([r.y.flatten() for r in records])
     loss, iterations = minimize_output_error(predict, target, list(force.parameters()), max_iter=max_iter)

@@ -152,7 +152,7 @@ def fit_physics(
                 for tensor, value in zip(raw, x, strict=False):
                     tensor.copy_(torch.tensor(value, dtype=torch.float64))
             parts = [output_jacobian(physics, names, r.t - r.t[0], r.u[None], x0, warm=w, initial_state=estimate_x0,
-                                     **simulate_options)
+                                     hold=r.hold, **simulate_options)
                      for r, w, x0 in zip(records, warm, starts(x), strict=True)]
             residual = torch.cat([(y - y_hat).flatten() for y, (y_hat, _) in zip(targets, parts, strict=True)]) / scale
             columns = []
@@ -205,6 +205,5 @@ def estimate_initial_state(physics, record: Experiment, samples: int | None = No
     """
     frozen = copy.deepcopy(physics)
     frozen.set_learnable(*frozen.learnable_names(), learn=False)
-    window = record if samples is None else Experiment(record.t[:samples], record.u[:samples], record.y[:samples],
-                                                        record.name)
+    window = record if samples is None else record.window(0, samples)
     return fit_physics(frozen, window, initial_state="estimate", **simulate_options).initial_states[0]
