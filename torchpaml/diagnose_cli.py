@@ -69,6 +69,7 @@ def diagnose_command(
     threshold: float = 10.0,
     min_share: float = 0.05,
     initial_state: Literal["rest", "estimate"] = "rest",
+    hold: Literal["foh", "zoh"] | None = None,
     discover: bool = False,
 ) -> dict:
     """Diagnose ``physics`` on the records and write the report into ``out``; returns the ``diagnosis.json`` content.
@@ -89,6 +90,8 @@ def diagnose_command(
         min_share: relative fall of the validation mismatch needed to add an effect (0.05: 5 %).
         initial_state: ``rest`` (records start at rest) or ``estimate`` (each record's initial state is
             fitted: with the parameters on training records, alone on validation records).
+        hold: how the input moved between samples, ``foh`` (linearly) or ``zoh`` (held constant, as a
+            DAC plays a sampled signal); default the CSV metadata's ``"hold"``, else ``foh``.
         discover: also discover a force outside the library: a neural force in the ODE, then its
             closed form (``discovery.json``, ``discovered_effect.yaml``; linear second-order physics).
     """
@@ -103,7 +106,7 @@ def diagnose_command(
         raise ValueError(f"--min_share is a share of the validation mismatch, in [0, 1); got {min_share}")
     model = _physics(physics, fix)
     chosen = _candidates(effects, candidates)
-    train, held_out = Experiment.from_csv(data), Experiment.from_csv(validation)
+    train, held_out = Experiment.from_csv(data, hold=hold), Experiment.from_csv(validation, hold=hold)
     diagnosis = diagnose(model, chosen, train, held_out, shortlist=shortlist, criterion=criterion,
                          threshold=threshold, min_share=min_share, initial_state=initial_state, discover=discover)
     path = write_report(diagnosis, out)

@@ -168,6 +168,7 @@ def test_user_physics_and_user_effect_from_a_config(tmp_path):
     ([], "physics: {class_path: user_model.Spring, init_args: {c: -4.0}}", "blew up"),
     (["--out", "train.csv"], None, "is an existing file"),
     (["--shortlist", "-1"], None, "--shortlist must be at least 1"),
+    (["--hold", "xoh"], None, "hold"),
     (["--data", "short.csv"], None, "has 3 samples, too few"),
     (["--discover"], "physics: {class_path: user_model.Tank}", "discovery needs linear second-order physics"),
 ])
