@@ -37,6 +37,8 @@ from torchpaml.simulate.sensitivity import simulate_record
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "cascaded_tanks"
 VALIDATION_SHARE = 0.25
+#: The pump's voltage is a zero-order-hold multisine (the data README): constant between samples.
+HOLD = "zoh"
 
 
 def candidates() -> list:
@@ -52,11 +54,10 @@ def main(argv: list[str] | None = None) -> dict:
     if not (args.data / "estimation.csv").is_file():
         parser.error(f"{args.data} has no estimation.csv; point --data at shared/data/cascaded_tanks")
     start = time.perf_counter()
-    estimation = Experiment.from_csv(args.data / "estimation.csv", "estimation")
-    test = Experiment.from_csv(args.data / "test.csv", "test")
+    estimation = Experiment.from_csv(args.data / "estimation.csv", "estimation", hold=HOLD)
+    test = Experiment.from_csv(args.data / "test.csv", "test", hold=HOLD)
     cut = int(round((1 - VALIDATION_SHARE) * len(estimation.t)))
-    train = Experiment(estimation.t[:cut], estimation.u[:cut], estimation.y[:cut], "train")
-    validation = Experiment(estimation.t[cut:], estimation.u[cut:], estimation.y[cut:], "validation")
+    train, validation = estimation.window(0, cut, "train"), estimation.window(cut, None, "validation")
     physics = TwoTanks(k1=0.01, k2=0.01, k3=0.01, k4=0.02, learn=("k1", "k3", "k4"))  # 100 s; 2 V/V
     diagnosis = diagnose(physics, candidates(), train, validation, initial_state="estimate")
     write_report(diagnosis, args.out / "diagnosis")

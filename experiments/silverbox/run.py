@@ -74,8 +74,7 @@ def frequency_response_start(record: Experiment) -> Oscillator:
 def split(record: Experiment) -> tuple[Experiment, Experiment]:
     """The first 1 - VALIDATION_SHARE of ``record`` for training, the rest for validation."""
     cut = int(round((1 - VALIDATION_SHARE) * len(record.t)))
-    return (Experiment(record.t[:cut], record.u[:cut], record.y[:cut], "train"),
-            Experiment(record.t[cut:], record.u[cut:], record.y[cut:], "validation"))
+    return record.window(0, cut, "train"), record.window(cut, None, "validation")
 
 
 def test_scores(model, tests: dict[str, Experiment]) -> tuple[dict[str, float], dict[str, float]]:
