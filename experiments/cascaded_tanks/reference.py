@@ -21,6 +21,7 @@ import argparse
 import warnings
 from pathlib import Path
 
+from run import HOLD
 from tanks import SensorClip, TorricelliOutflow, TwoTanks
 
 from torchpaml import Experiment
@@ -47,8 +48,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     if not (args.data / "estimation.csv").is_file():
         parser.error(f"{args.data} has no estimation.csv; point --data at shared/data/cascaded_tanks")
-    estimation = Experiment.from_csv(args.data / "estimation.csv", "estimation")
-    test = Experiment.from_csv(args.data / "test.csv", "test")
+    estimation = Experiment.from_csv(args.data / "estimation.csv", "estimation", hold=HOLD)
+    test = Experiment.from_csv(args.data / "test.csv", "test", hold=HOLD)
     model = benchmark_model()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # k2, k4 and the upper level's scale trade: the warning is expected
