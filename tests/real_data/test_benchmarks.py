@@ -33,8 +33,8 @@ def test_silverbox_linear_oscillator_on_the_official_split():
 
 def test_cascaded_tanks_linear_physics_from_the_estimated_shared_initial_state():
     tanks = load("cascaded_tanks/tanks.py")
-    estimation = Experiment.from_csv(cascaded.DATA / "estimation.csv")
-    test = Experiment.from_csv(cascaded.DATA / "test.csv")
+    estimation = Experiment.from_csv(cascaded.DATA / "estimation.csv", hold=cascaded.HOLD)
+    test = Experiment.from_csv(cascaded.DATA / "test.csv", hold=cascaded.HOLD)
     physics = tanks.TwoTanks(0.01, 0.01, 0.01, 0.02, learn=("k1", "k3", "k4"))
     fit = fit_physics(physics, estimation, initial_state="estimate")
     x0 = fit.initial_states[0]
