@@ -38,6 +38,10 @@ def test_hold_is_checked_read_from_metadata_and_kept_by_windows(tmp_path):
     path = Experiment(t, t, t, "held", {"hold": "zoh"}).to_csv(tmp_path / "held.csv")
     record = Experiment.from_csv(path)
     assert record.hold == "zoh"
+    for written in (Experiment(t, t, t, hold="zoh").to_csv(tmp_path / "a.csv"),
+                    Experiment(t, t, t, hold="zoh").to_npz(tmp_path / "a.npz")):  # a file keeps the hold
+        reader = Experiment.from_csv if written.suffix == ".csv" else Experiment.from_npz
+        assert reader(written).hold == "zoh"
     assert Experiment.from_csv(path, hold="foh").hold == "foh"  # the argument wins over the metadata
     part = record.window(2, 6, "part")
     assert (part.hold, part.name, len(part.t)) == ("zoh", "part", 4)

@@ -144,6 +144,10 @@ class Experiment:
         return cls(columns["t"], columns["u"], columns["y"], name or path.stem, metadata,
                    hold or metadata.get("hold", "foh"))
 
+    def _written_metadata(self) -> dict:
+        """The metadata a file keeps: this record's, with its ``hold`` where it is not the default."""
+        return self.metadata if self.hold == "foh" else {**self.metadata, "hold": self.hold}
+
     def to_csv(self, path: str | Path) -> Path:
         """Write ``t,u,y`` (single-channel u and y), with the metadata as a first ``# {json}`` line."""
         if self.u.shape[1] != 1 or self.y.shape[1] != 1:
@@ -153,7 +157,8 @@ class Experiment:
         table = torch.stack([self.t, self.u[:, 0], self.y[:, 0]], dim=1).numpy()
         buffer = io.StringIO()
         np.savetxt(buffer, table, delimiter=",", fmt="%.17g")
-        head = f"# {json.dumps(self.metadata)}\n" if self.metadata else ""
+        metadata = self._written_metadata()
+        head = f"# {json.dumps(metadata)}\n" if metadata else ""
         path.write_text(f"{head}t,u,y\n{buffer.getvalue()}")
         return path
 
@@ -175,7 +180,8 @@ class Experiment:
     def to_npz(self, path: str | Path) -> Path:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(path, t=self.t.numpy(), u=self.u.numpy(), y=self.y.numpy(), metadata=json.dumps(self.metadata))
+        np.savez(path, t=self.t.numpy(), u=self.u.numpy(), y=self.y.numpy(),
+                 metadata=json.dumps(self._written_metadata()))
         return path
 
 

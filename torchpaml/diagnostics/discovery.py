@@ -162,7 +162,8 @@ def _along_trajectories(neural, physics, names: list[str], terms: list[str], tra
     samples: dict[str, torch.Tensor] = {}
     with torch.no_grad():
         for record, x0 in zip(train, starts, strict=True):
-            states = simulate_rk4(neural, record.t - record.t[0], record.u[None], x0.reshape(1, -1), hold=record.hold)[0]
+            states = simulate_rk4(neural, record.t - record.t[0], record.u[None], x0.reshape(1, -1),
+                                  hold=record.hold)[0]
             x, v, u = states[:, 0], states[:, 1], record.u[:, 0]
             raw = {"library": torch.stack([evaluate_term(term, x, v, u, SIGN_WIDTH) for term in terms], dim=1),
                    "sensitivity": _sensitivities(physics, names, x, v, u), "learned": neural.force(x, v, u)[:, None]}

@@ -310,13 +310,15 @@ class Secant:
         return torch.cat(parts)
 
     def probes(self, extended, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
-        """The outputs with the strength ``name`` at each of ``values``; ``None`` where its constraint forbids the value."""
+        """The outputs with the strength ``name`` at each of ``values``; ``None`` where its constraint forbids
+        the value."""
         return [self.outputs(extended) if _assigned(extended, name, value) else None for value in values]
 
 
 def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experiment], probe: float,
                  reference: torch.Tensor, engine: TangentLinear | Secant) -> tuple[float, int, float, torch.Tensor]:
-    r"""(score, order q, first-order strength, move) of the effect whose strength parameter is ``name`` (module docstring).
+    r"""(score, order q, first-order strength, move) of the effect whose strength parameter is ``name``
+    (module docstring).
 
     The strength is probed at 0, δ, 2δ and -δ. An effect that moves the output the same way at ±δ
     (second order, or an absolute value such as the dead zone's |d|) can only add a positive multiple
@@ -506,8 +508,8 @@ def rank_missing_effects(
     refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
     if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
         best = refitted[0]
-        best.refit = _free_shape(best.refit, best.effect, train, validation, criterion, threshold, max_nfev, initial_state,
-                                 ftol)
+        best.refit = _free_shape(best.refit, best.effect, train, validation, criterion, threshold, max_nfev,
+                                 initial_state, ftol)
         best.improvement = baseline.criterion - best.refit.criterion
         best.unphysical = unphysical_values(best.refit.model._rows())
     rest = [e for e in by_score if e.refit is None]

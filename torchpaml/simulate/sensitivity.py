@@ -146,7 +146,8 @@ def _exact_jacobian(physics, raw: dict[str, torch.Tensor], h: float, t: torch.Te
             starts.append(torch.eye(n, dtype=x0.dtype)[:, None].expand(n, batch, n))
             direct.append(torch.zeros(n, *y.shape, dtype=y.dtype))
         drives, starts = torch.cat(drives), torch.cat(starts)
-        responses = discrete_response(Phi, eye, zeros, C, zeros[: C.shape[0]], drives.flatten(0, 1), starts.flatten(0, 1))
+        responses = discrete_response(Phi, eye, zeros, C, zeros[: C.shape[0]], drives.flatten(0, 1),
+                                      starts.flatten(0, 1))
         J = responses.reshape(len(drives), *y.shape) + torch.cat(direct)
     return y, J.movedim(0, -1)
 

@@ -6,7 +6,8 @@ it carries 1 row or 1000. The cost is the number of *sequential* steps, so this 
 
 **The step.** Between samples $t_k$ and $t_{k+1}$ ($h_k = t_{k+1} - t_k$, any spacing) the input is the
 first-order hold $u(\tau) = u_k + (\tau - t_k)(u_{k+1} - u_k)/h_k$ (or, with ``hold="zoh"``, $u_k$
-held), the hold the exact LTI path assumes. ``substeps`` classical RK4 steps of $h_k/m$ advance the state; the global error is
+held), the hold the exact LTI path assumes. ``substeps`` classical RK4 steps of $h_k/m$ advance the
+state; the global error is
 $O(h^4)$ (tested: halving $h$ divides it by 16).
 
 **Multiple shooting.** The $N - 1$ steps are cut into $S$ segments of $L$ steps. From guesses $\xi_s$ of
