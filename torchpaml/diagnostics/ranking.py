@@ -59,6 +59,7 @@ from matplotlib.figure import Figure
 from torchpaml.data import Experiment
 from torchpaml.errors import DataError, SimulationError
 from torchpaml.fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
+from torchpaml.metrics import mismatch
 from torchpaml.parameters import unphysical_values
 from torchpaml.simulate.lti import simulate_lti
 from torchpaml.simulate.sensitivity import raw_parameters, simulate_record
@@ -404,15 +405,14 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
 
 
 def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None, warm: list[dict]) -> float:
-    r"""$\|y - \hat y\| / \|y\|$ over the training records from ``states`` (or rest); inf if the simulation blows up.
-
-    Each record's RK4 solution is left in its dict of ``warm``."""
+    r"""The :func:`~torchpaml.metrics.mismatch` over the training records from ``states`` (or rest); inf if the
+    simulation blows up. Each record's RK4 solution is left in its dict of ``warm``."""
     try:
-        errors = [torch.sum((r.y[None] - simulate_record(physics, r, x0, warm=w)) ** 2)
-                  for r, x0, w in zip(train, states or [None] * len(train), warm, strict=True)]
+        outputs = [simulate_record(physics, r, x0, warm=w).flatten()
+                   for r, x0, w in zip(train, states or [None] * len(train), warm, strict=True)]
     except SimulationError:
         return math.inf
-    return float(torch.sqrt(sum(errors) / sum(torch.sum(r.y**2) for r in train)))
+    return mismatch(torch.cat([r.y.flatten() for r in train]), torch.cat(outputs))
 
 
 def _free_shape(score: ModelScore, effect: str, train: list[Experiment], validation: list[Experiment], criterion: str,
