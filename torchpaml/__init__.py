@@ -7,7 +7,7 @@ Physics-augmented Learning".
 
 from torchpaml.certificates import Certificate, draw_chebyshev, draw_mlp, incompatibility_certificates
 from torchpaml.data import Experiment
-from torchpaml.errors import DataError, DomainError, SimulationError
+from torchpaml.errors import DataError, DomainError, ResolutionError, SimulationError
 from torchpaml.fit import (
     PhysicsEstimate,
     ResidualEstimate,
@@ -42,6 +42,7 @@ __all__ = [
     "Positive",
     "Real",
     "ResidualEstimate",
+    "ResolutionError",
     "SecondOrderPhysics",
     "SimulationError",
     "draw_chebyshev",

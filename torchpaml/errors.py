@@ -1,6 +1,6 @@
 """Exceptions raised by torchpaml. Each message says what was received, what was expected, and the fix."""
 
-__all__ = ["DataError", "SimulationError", "DomainError"]
+__all__ = ["DataError", "DomainError", "ResolutionError", "SimulationError"]
 
 
 class DataError(ValueError):
@@ -9,6 +9,10 @@ class DataError(ValueError):
 
 class SimulationError(RuntimeError):
     """A simulation that failed: the solution blew up, or the solver could not advance."""
+
+
+class ResolutionError(SimulationError):
+    """A fitted model whose simulation depends on the RK4 step beyond what substeps can resolve."""
 
 
 class DomainError(ValueError):

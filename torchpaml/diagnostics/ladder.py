@@ -39,11 +39,13 @@ class Ladder:
 
     def to_dicts(self) -> list[dict]:
         """One dict per rung: ``{model, equation, added, nrmse_train, nrmse_validation, criterion, parameters,
-        uncertainty, identifiability}`` (``uncertainty``: standard errors; ``identifiability``: the warning or ``None``)."""
+        uncertainty, identifiability, substeps}`` (``uncertainty``: standard errors; ``identifiability``: the
+        warning or ``None``; ``substeps``: the RK4 steps per sample the rung was fitted and scored at)."""
         return [
             {"model": s.name, "equation": s.equation, "added": None if i == 0 else self.added[i - 1],
              "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
-             "parameters": s.parameters, "uncertainty": s.uncertainty, "identifiability": s.warning}
+             "parameters": s.parameters, "uncertainty": s.uncertainty, "identifiability": s.warning,
+             "substeps": s.model.substeps}
             for i, s in enumerate(self.steps)
         ]
 

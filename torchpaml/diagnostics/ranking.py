@@ -29,6 +29,8 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
    the best of them has shape parameters (:attr:`~torchpaml.physics.AbstractEffect.shape`: the
    width of Coulomb friction's smoothed sign), it is refitted once more with them freed, and that
    refit is kept when it lowers the criterion by more than ``threshold``: the data asks for another shape.
+   A refit whose optimum fails the step check (:mod:`torchpaml.fit.resolution`: its output depends on
+   the RK4 step beyond what substeps resolve) has no result; its evidence says why (``failure``).
 4. **Rank** by the information criterion on the validation records,
    $\mathrm{BIC} = n \ln(\mathrm{SSE}/n) + k \ln n$ (or $\mathrm{AIC} = n\ln(\mathrm{SSE}/n) + 2k$), $k$ the
    number of fitted parameters. The best candidate is *recommended* when
@@ -57,7 +59,7 @@ import torch
 from matplotlib.figure import Figure
 
 from torchpaml.data import Experiment
-from torchpaml.errors import DataError, SimulationError
+from torchpaml.errors import DataError, ResolutionError, SimulationError
 from torchpaml.fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
 from torchpaml.metrics import mismatch
 from torchpaml.parameters import unphysical_values
@@ -97,7 +99,8 @@ class ModelScore:
 class EffectEvidence:
     """One candidate's evidence: its first-order score and, if refitted, its refitted model's errors.
 
-    ``improvement`` is the baseline's criterion minus the candidate's (positive: better).
+    ``improvement`` is the baseline's criterion minus the candidate's (positive: better). ``failure``: why a
+    shortlisted refit has no result (its optimum fails the step check, :mod:`torchpaml.fit.resolution`).
     """
 
     effect: str
@@ -108,6 +111,7 @@ class EffectEvidence:
     refit: ModelScore | None = None
     improvement: float | None = None
     unphysical: list[str] = field(default_factory=list)
+    failure: str | None = None
 
     def to_dict(self) -> dict:
         refit = self.refit
@@ -119,6 +123,7 @@ class EffectEvidence:
             "criterion": None if refit is None else refit.criterion,
             "improvement": self.improvement, "parameters": {} if refit is None else refit.parameters,
             "uncertainty": {} if refit is None else refit.uncertainty, "unphysical": self.unphysical,
+            "failure": self.failure,
         }
 
 
@@ -158,6 +163,7 @@ class Ranking:
             gain = "" if e.improvement is None else f"{e.improvement:.1f}"
             params = "" if refit is None else ", ".join(f"{k}={v:.4g}" for k, v in refit.parameters.items())
             params += "".join(f" **unphysical: {note}**" for note in e.unphysical)
+            params += f" **{e.failure}**" if e.failure else ""
             lines.append(f"| {i} | {e.effect} | {e.score:.3f} | {validation} | {gain} | {params} |")
         return "\n".join(lines)
 
@@ -398,6 +404,8 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
             continue
         try:
             return fit(start_states=states)
+        except ResolutionError:
+            raise  # the fit's optimum, not its start, is unresolved
         except SimulationError:
             if strength == 0.0:
                 raise
@@ -500,8 +508,12 @@ def rank_missing_effects(
     ftol = REFIT_CRITERION_STEP / sum(r.y.numel() for r in train)
     for entry in by_score[:shortlist]:
         extended, strength, move = extended_models[entry.effect]
-        refit = refit_effect(extended, strength, entry.first_order_strength, train, max_nfev, initial_state, fit, move,
-                             ftol)
+        try:
+            refit = refit_effect(extended, strength, entry.first_order_strength, train, max_nfev, initial_state, fit,
+                                 move, ftol)
+        except ResolutionError as error:
+            entry.failure = f"refit unresolved: {error}"
+            continue
         entry.refit = score_model(extended, refit, validation, criterion, initial_state)
         entry.improvement = baseline.criterion - entry.refit.criterion
         entry.unphysical = unphysical_values(entry.refit.model._rows())

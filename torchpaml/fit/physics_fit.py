@@ -18,6 +18,9 @@ intervals, identifiability), which is also recorded on ``physics`` for ``describ
 
 Trial steps whose simulation blows up are rejected by the trust region (their residual is inf);
 a start that blows up raises :class:`~torchpaml.errors.SimulationError`.
+
+**The step check** (:mod:`torchpaml.fit.resolution`): at the optimum the output must not depend on the
+RK4 step; where it does, the model's ``substeps`` grow and the fit goes on from the optimum.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from scipy.optimize import least_squares
 
 from torchpaml.data import Experiment
 from torchpaml.errors import SimulationError
+from torchpaml.fit.resolution import resolved_substeps
 from torchpaml.fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
 from torchpaml.parameters import record_uncertainty
 from torchpaml.simulate.sensitivity import output_jacobian, raw_parameters
@@ -54,6 +58,7 @@ class PhysicsEstimate:
         uncertainty: standard errors, 95 % intervals and the identifiability check of ``parameters``
             (and of the initial states, named ``x0[record].state``, where they were estimated).
         initial_states: each record's initial state (n_state,): rest, or the estimate.
+        substeps: the RK4 steps per sample interval the fit ended at (the step check), also set on the model.
     """
 
     parameters: dict[str, float]
@@ -63,6 +68,7 @@ class PhysicsEstimate:
     evaluations: int
     uncertainty: Uncertainty
     initial_states: list[torch.Tensor]
+    substeps: int
 
 
 def _raw_bounds(physics, names: list[str], bounds: dict[str, tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
@@ -114,11 +120,14 @@ def fit_physics(
         max_nfev: iteration limit of the trust region.
         ftol: the trust region stops when a step lowers the cost $\tfrac12\|r\|^2$ by less than this share of it
             (scipy's ``ftol``); the default fits to the last digits, a ranking's refits stop earlier.
-        simulate_options: ``substeps``/``segment`` of the RK4 engine.
+        simulate_options: ``segment`` of the RK4 engine, and ``substeps``: RK4 steps per sample interval to
+            start from (default the model's own); the step check raises them where the fitted output
+            depends on the step (:mod:`torchpaml.fit.resolution`).
     """
     if initial_state not in ("rest", "estimate"):
         raise ValueError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
     estimate_x0 = initial_state == "estimate"
+    physics.substeps = simulate_options.pop("substeps", physics.substeps)
     records = [records] if isinstance(records, Experiment) else list(records)
     if start_states is not None and (not estimate_x0 or len(start_states) != len(records)):
         raise ValueError(f"start_states needs initial_state='estimate' and one state per record ({len(records)}), got "
@@ -178,8 +187,20 @@ def fit_physics(
     start = np.clip(np.concatenate([torch.stack([v.detach() for v in raw]).numpy() if raw else np.zeros(0), *guesses]),
                     lower, upper)
     evaluate(start)  # raises SimulationError, naming the blow-up, at a bad start
-    result = least_squares(fun, start, jac=lambda x: evaluate(x)[1], bounds=(lower, upper), method="trf",
-                           x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
+    def solve(x: np.ndarray):
+        return least_squares(fun, x, jac=lambda x: evaluate(x)[1], bounds=(lower, upper), method="trf",
+                             x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
+
+    def resolution(x: np.ndarray) -> int:
+        """The step check's substeps at ``x`` (the model set to ``x`` first)."""
+        evaluate(x)
+        return resolved_substeps(physics, records, starts(x), float(np.linalg.norm(fun(x))))
+
+    result = solve(start)
+    while (substeps := resolution(result.x)) != physics.substeps:  # go on from the optimum at the finer step
+        physics.substeps = substeps
+        memo.clear()
+        result = solve(result.x)
     residual, jacobian = evaluate(result.x)
     values = physics.physical_parameters()
     residual, jacobian = torch.from_numpy(residual.copy()), torch.from_numpy(jacobian.copy())
@@ -193,7 +214,7 @@ def fit_physics(
     record_uncertainty(physics, {n: uncertainty.std[n] for n in names}, uncertainty.interval)
     warn_if_unidentifiable(uncertainty, physics.display_name)
     return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,
-                           jacobian, count["simulations"], uncertainty, initial_states)
+                           jacobian, count["simulations"], uncertainty, initial_states, physics.substeps)
 
 
 def estimate_initial_state(physics, record: Experiment, samples: int | None = None, **simulate_options) -> torch.Tensor:

@@ -54,10 +54,17 @@ def state_vector(columns: list[torch.Tensor]) -> torch.Tensor:
 
 
 class AbstractPhysics(nn.Module):
-    """Abstract ODE physics $\\dot x = f(t, x, u)$, $y = h(x, u)$. Subclasses define the two maps."""
+    """Abstract ODE physics $\\dot x = f(t, x, u)$, $y = h(x, u)$. Subclasses define the two maps.
+
+    ``substeps``: the RK4 steps per sample interval that simulations of this model take unless told
+    otherwise; :func:`~torchpaml.fit.fit_physics` raises it until the fitted model's output no longer
+    depends on the step (:mod:`torchpaml.fit.resolution`). Linear physics on a uniform grid takes the
+    exact path and ignores it.
+    """
 
     state_names: tuple[str, ...] = ()
     input_dim: int = 1
+    substeps: int = 1
     output_dim: int = 1
 
     @property

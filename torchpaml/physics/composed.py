@@ -28,8 +28,11 @@ def compose(physics, effect: AbstractEffect) -> ComposedModel:
     if not isinstance(effect, AbstractEffect):
         raise TypeError(f"can only add an AbstractEffect to physics, got {type(effect).__name__}")
     if isinstance(physics, ComposedModel):
-        return ComposedModel(physics.base, [*physics.effects.values(), effect])
-    return ComposedModel(physics, [effect])
+        model = ComposedModel(physics.base, [*physics.effects.values(), effect])
+    else:
+        model = ComposedModel(physics, [effect])
+    model.substeps = physics.substeps  # the resolution the physics was fitted at
+    return model
 
 
 class ComposedModel(AbstractPhysics):
@@ -56,6 +59,7 @@ class ComposedModel(AbstractPhysics):
         self.effects = nn.ModuleDict({e.name: e for e in effects})
         self.state_names = base.state_names
         self.input_dim, self.output_dim = base.input_dim, base.output_dim
+        self.substeps = base.substeps
 
     def _mapped(self, u):
         for effect in self.effects.values():

@@ -319,7 +319,7 @@ def solve_rk4(
     u: torch.Tensor,
     x0: torch.Tensor,
     *,
-    substeps: int = 1,
+    substeps: int | None = None,
     segment: int = SEGMENT_STEPS,
     tol: float | None = None,
     max_sweeps: int = 16,
@@ -340,6 +340,7 @@ def solve_rk4(
     ``hold``: ``"foh"`` or ``"zoh"`` (module docstring).
     """
     check_hold(hold)
+    substeps = getattr(physics, "substeps", 1) if substeps is None else substeps
     if substeps < 1 or segment < 1:
         raise ValueError(f"substeps and segment must be at least 1, got substeps={substeps}, segment={segment}")
     tol = tol if tol is not None else GRADIENT_TOL if sensitivities else NEWTON_TOL
@@ -375,7 +376,7 @@ def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, wa
         warm: a dict the caller keeps between solves of the same record under nearby parameters (the
             steps of a training run): the converged states are stored under ``"states"`` and start the
             next solve's Newton (in about 3 sweeps instead of 7 to 8 for a neural force, measured).
-        options: ``substeps`` (RK4 steps per sample interval, default 1), ``segment`` (steps per
+        options: ``substeps`` (RK4 steps per sample interval, default the model's ``substeps``), ``segment`` (steps per
             shooting segment L, default :data:`SEGMENT_STEPS`), ``tol`` (Newton stops when every
             continuity defect is below ``tol`` times the state's scale; default :data:`NEWTON_TOL`, or
             :data:`GRADIENT_TOL` when grad mode is on), ``max_sweeps`` (sweeps before

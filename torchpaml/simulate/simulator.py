@@ -24,7 +24,7 @@ def simulate(
     adjoint: bool = False,
     max_num_steps: int = 1_000_000,
     knots: torch.Tensor | None = None,
-    substeps: int = 1,
+    substeps: int | None = None,
     segment: int = SEGMENT_STEPS,
     blowup: float = 1e8,
     warm: dict | None = None,
@@ -42,7 +42,8 @@ def simulate(
             :func:`~torchpaml.simulate.shooting.simulate_rk4`), or any other torchdiffeq method name
             (``"dopri5"``: adaptive, with error control).
         rtol, atol, adjoint, max_num_steps: passed to the torchdiffeq solver.
-        substeps, segment: RK4 steps per sample interval, and steps per shooting segment (``"rk4"``).
+        substeps, segment: RK4 steps per sample interval (default the model's ``substeps``, which
+            :func:`~torchpaml.fit.fit_physics` sets), and steps per shooting segment (``"rk4"``).
         knots: times where the input's slope jumps, stepped on by adaptive solvers (see
             :func:`~torchpaml.simulate.ode.simulate_ode`); the exact path needs none.
         blowup: an output beyond this magnitude raises :class:`SimulationError`.
