@@ -67,6 +67,7 @@ def main(argv: list[str] | None = None) -> dict:
         rmse = float(error.square().mean().sqrt())
         models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
                        "uncertainty": step.uncertainty, "initial_state": step.train_states[0].tolist(),
+                       "substeps": step.model.substeps,
                        "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}})
         print(f"{step.name}: test RMSE {rmse:.3f} V", flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,

@@ -19,12 +19,14 @@ from __future__ import annotations
 
 import torch
 
-from torchpaml.parameters import Interval, PhysicalParameter, Positive, Real, register_parameters
+from torchpaml.parameters import Interval, PhysicalParameter, Positive, register_parameters
 from torchpaml.physics import AbstractEffect, AbstractPhysics, state_vector
 
-__all__ = ["CLIP_LEVEL", "SensorClip", "TorricelliOutflow", "TwoTanks", "UpperOverflow"]
+__all__ = ["CLIP_LEVEL", "MAX_SPILL_RATE", "SensorClip", "TorricelliOutflow", "TwoTanks", "UpperOverflow"]
 
 CLIP_LEVEL = 10.0
+#: 1/s: the fastest spill the 4 s samples resolve, one sample interval (:class:`UpperOverflow`).
+MAX_SPILL_RATE = 0.25
 
 
 class TwoTanks(AbstractPhysics):
@@ -104,6 +106,11 @@ class UpperOverflow(AbstractEffect):
     ($k_4 h / k_1$), so that it does not depend on the unmeasured scale of the upper level. ``h`` is a
     shape parameter (fixed at its start, freed by the ranking when the data asks); $s \in [0, 1]$ is
     the share of the spill that falls into the lower tank.
+
+    The rate $c$ is bounded by :data:`MAX_SPILL_RATE`: a spill faster than one sample interval is a hard
+    cap on the 4 s grid, and the data cannot tell it from an instant one. Unbounded, the fit drove $c$ to
+    40 1/s, where the RK4 step (4 s) no longer resolves the spill and the integration error, not the
+    physics, fitted the data (the step check of :func:`~torchpaml.fit.fit_physics` refuses that optimum).
     """
 
     name, equation = "upper_overflow", "- c*max(x_upper - h*k4/k1, 0), s of it into the lower tank"
@@ -113,7 +120,8 @@ class UpperOverflow(AbstractEffect):
     def __init__(self, c: float = 0.0, h: float = 5.0, s: float = 0.5, *, learn=("c", "s")):
         super().__init__()
         register_parameters(self, [
-            PhysicalParameter("c", c, "1/s", Real(), "spill rate above the rim", physical=(0.0, float("inf"))),
+            PhysicalParameter("c", c, "1/s", Interval(-MAX_SPILL_RATE, MAX_SPILL_RATE), "spill rate above the rim",
+                              physical=(0.0, MAX_SPILL_RATE)),
             PhysicalParameter("h", h, "V (input)", Positive(), "rim, as the input that settles there"),
             PhysicalParameter("s", s, "-", Interval(0.0, 1.0), "share of the spill into the lower tank"),
         ], learn)

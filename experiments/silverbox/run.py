@@ -20,7 +20,7 @@ The official split (``shared/data/silverbox/README.md``): ``train_multisine`` fo
 Writes ``DIR/silverbox.json``::
 
     {"found": [effects added, in order],
-     "models": [{"model", "equation", "parameters", "uncertainty",
+     "models": [{"model", "equation", "parameters", "uncertainty", "substeps",
                  "rmse": {"test_multisine": mV, "test_arrow_no_extrapolation": mV, "test_arrow_full": mV},
                  "nrmse": {...: RMSE / std(y) over the scored samples}}],   # physics alone first, final model last
      "hybrid": [the Chebyshev residual on the first and last rung, on validation, with the alarm],
@@ -107,7 +107,8 @@ def main(argv: list[str] | None = None) -> dict:
     for step in diagnosis.ladder.steps:
         rmse, nrmse = test_scores(step.model, tests)
         models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
-                       "uncertainty": step.uncertainty, "rmse": rmse, "nrmse": nrmse})
+                       "uncertainty": step.uncertainty, "substeps": step.model.substeps, "rmse": rmse,
+                       "nrmse": nrmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,
               "hybrid": [h.to_dict() for h in diagnosis.hybrids], "seconds": time.perf_counter() - start}
