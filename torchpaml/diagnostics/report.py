@@ -97,7 +97,8 @@ def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
         [[i, e["effect"], f"{e['score']:.3f}", _pct(e["nrmse_validation"]),
           "" if e["improvement"] is None else f"{e['improvement']:.1f}",
           ", ".join(f"{k}={v:.4g}" for k, v in e["parameters"].items())
-          + "".join(f" (unphysical: {note})" for note in e["unphysical"]) + (f" ({e['failure']})" if e["failure"] else "")]
+          + "".join(f" (unphysical: {note})" for note in e["unphysical"])
+          + (f" ({e['failure']})" if e["failure"] else "")]
          for i, e in enumerate(content["ranking"], 1)],
     )
     ladder = _table(["step", "model", "train %", "validation %"],

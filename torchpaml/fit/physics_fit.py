@@ -187,6 +187,7 @@ def fit_physics(
     start = np.clip(np.concatenate([torch.stack([v.detach() for v in raw]).numpy() if raw else np.zeros(0), *guesses]),
                     lower, upper)
     evaluate(start)  # raises SimulationError, naming the blow-up, at a bad start
+
     def solve(x: np.ndarray):
         return least_squares(fun, x, jac=lambda x: evaluate(x)[1], bounds=(lower, upper), method="trf",
                              x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
