@@ -18,11 +18,14 @@ import time
 
 import torch
 
-from torchpaml import Oscillator
-from torchpaml.diagnostics import rank_missing_effects
-from torchpaml.fit import fit_physics
-from torchpaml.physics import CubicStiffness, default_effects
-from torchpaml.data import Simulated
+from torchpaml import (
+    CubicStiffness,
+    default_effects,
+    fit_physics,
+    Oscillator,
+    rank_missing_effects,
+    Simulated,
+)
 
 
 def timed(work) -> float:

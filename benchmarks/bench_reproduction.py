@@ -9,9 +9,8 @@ import time
 
 import torch
 
-from torchpaml import Experiment, Oscillator, fit_physics
-from torchpaml.paper import PaperSetup, _measure, reproduce
-from torchpaml.signals import sine, time_grid
+from torchpaml import Experiment, fit_physics, Oscillator, sine, time_grid
+from torchpaml._paper import PaperSetup, _measure, reproduce
 
 
 def main() -> None:

@@ -15,9 +15,7 @@ import time
 
 import torch
 
-from torchpaml import Experiment, Oscillator, fit_physics, simulate
-from torchpaml.physics import CubicStiffness
-from torchpaml.signals import multisine
+from torchpaml import CubicStiffness, Experiment, fit_physics, multisine, Oscillator, simulate
 
 
 def best(work, repeats: int) -> float:

@@ -11,7 +11,7 @@ if os.environ.get("PYTEST_XDIST_WORKER"):  # `-n 2`: one thread per worker, not 
 @pytest.fixture
 def grid():
     """A 20 s record at 100 Hz: long enough for dynamics, short enough for fast tests."""
-    from torchpaml.signals import time_grid
+    from torchpaml._signals import time_grid
 
     return time_grid(20.0, 0.01)
 

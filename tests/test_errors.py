@@ -13,11 +13,14 @@ from torchpaml import (
     DomainError,
     Experiment,
     Oscillator,
-    SimulationError,
+    PhysicalParameter,
+    Real,
+    register_parameters,
     simulate,
+    SimulationError,
+    sine,
+    time_grid,
 )
-from torchpaml.parameters import PhysicalParameter, Real, register_parameters
-from torchpaml.signals import sine, time_grid
 
 
 def _write(tmp_path, text):

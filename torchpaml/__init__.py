@@ -1,61 +1,234 @@
 """torchpaml: physics-augmented learning of input-driven dynamical systems, with orthogonal residuals.
 
-Plain ``nn.Module`` physics and residuals, simulators (exact LTI and torchdiffeq), two-stage
-fitting, and incompatibility certificates, following Kuang & Lin, "Structural Constraints for
-Physics-augmented Learning".
+Fit an ODE physics model to measurements u(t), y(t), see where it fails, find the physical effect it
+misses, add it, and put a Chebyshev-Hammerstein residual on top that improves accuracy but cannot hide
+wrong physics (Kuang & Lin, "Structural Constraints for Physics-augmented Learning").
+
+Everything a user calls is exported here; the modules behind it are private. The command line is
+``torchpaml`` (:mod:`torchpaml.cli`). The Lightning systems load Lightning on first use.
 """
 
-from torchpaml.certificates import Certificate, draw_chebyshev, draw_mlp, incompatibility_certificates
-from torchpaml.data import Experiment
-from torchpaml.errors import DataError, DomainError, ResolutionError, SimulationError
-from torchpaml.fit import (
+import importlib
+
+from torchpaml._certificates import Certificate, incompatibility_certificates
+from torchpaml._data import Experiment, ExperimentSource, Files, Simulated
+from torchpaml._diagnostics import (
+    Adequacy,
+    AmplitudeBins,
+    Comparison,
+    Diagnosis,
+    Discovery,
+    EffectEvidence,
+    HarmonicFingerprint,
+    HybridScore,
+    Ladder,
+    ModelScore,
+    Ranking,
+    ResidualAnalysis,
+    ValidityMap,
+    assess_adequacy,
+    compare,
+    diagnose,
+    discover_missing_force,
+    error_by_amplitude,
+    harmonic_fingerprint,
+    model_ladder,
+    rank_missing_effects,
+    residual_analysis,
+    validity_map,
+)
+from torchpaml._errors import DataError, DomainError, ResolutionError, SimulationError
+from torchpaml._fit import (
     PhysicsEstimate,
     ResidualEstimate,
     estimate_initial_state,
     fit_chebyshev_hammerstein,
+    fit_neural_force,
     fit_physics,
     fit_residual,
     reestimate_shift,
 )
-from torchpaml.metrics import fit_percent, mismatch, rmse
-from torchpaml.parameters import Interval, PhysicalParameter, Positive, Real, register_parameters
-from torchpaml.physics import AbstractPhysics, Oscillator, Pendulum, SecondOrderPhysics
-from torchpaml.residual import AbstractResidual, ChebyshevHammerstein, ForceAugmented, MLPForce, MLPResidual
-from torchpaml.simulate import simulate
+from torchpaml._fit.uncertainty import IdentifiabilityWarning, Uncertainty
+from torchpaml._metrics import fit_percent, mismatch, rmse
+from torchpaml._parameters import Interval, PhysicalParameter, Positive, Real, register_parameters
+from torchpaml._physics import (
+    EFFECTS,
+    AbstractEffect,
+    AbstractPhysics,
+    ComposedModel,
+    ConstantForce,
+    CoulombFriction,
+    CubicStiffness,
+    DeadZone,
+    DiscoveredForce,
+    InputSaturation,
+    Oscillator,
+    OutputSaturation,
+    Pendulum,
+    PendulumRestoring,
+    QuadraticDamping,
+    QuadraticStiffness,
+    SecondOrderPhysics,
+    candidate_terms,
+    default_effects,
+    state_vector,
+)
+from torchpaml._physics.registry import PHYSICS, build_model
+from torchpaml._render.figures import (
+    amplitude_figure,
+    comparison_figure,
+    diagnosis_figures,
+    discovery_figure,
+    ladder_figure,
+    overlay_figure,
+    ranking_figure,
+    residual_analysis_figure,
+    residual_figure,
+    spectrum_figure,
+    validity_figure,
+)
+from torchpaml._render.report import write_report
+from torchpaml._render.schema import SCHEMA_VERSION, diagnosis_to_dict, discovery_to_dict
+from torchpaml._render.tables import comparison_table, ranking_table
+from torchpaml._residual import AbstractResidual, ChebyshevHammerstein, ForceAugmented, MLPForce, MLPResidual
+from torchpaml._signals import chirp, cosine, multisine, pseudorandom, sine, time_grid
+from torchpaml._simulate import iir_filter, output_jacobian, simulate, simulate_record
 
 __all__ = [
+    # physics and effects
     "AbstractPhysics",
-    "AbstractResidual",
-    "Certificate",
-    "ChebyshevHammerstein",
-    "DataError",
-    "DomainError",
-    "Experiment",
-    "ForceAugmented",
-    "Interval",
-    "MLPForce",
-    "MLPResidual",
+    "SecondOrderPhysics",
     "Oscillator",
     "Pendulum",
+    "state_vector",
+    "AbstractEffect",
+    "ComposedModel",
+    "ConstantForce",
+    "CoulombFriction",
+    "CubicStiffness",
+    "DeadZone",
+    "DiscoveredForce",
+    "InputSaturation",
+    "OutputSaturation",
+    "PendulumRestoring",
+    "QuadraticDamping",
+    "QuadraticStiffness",
+    "EFFECTS",
+    "PHYSICS",
+    "build_model",
+    "candidate_terms",
+    "default_effects",
+    # parameters
+    "Interval",
     "PhysicalParameter",
-    "PhysicsEstimate",
     "Positive",
     "Real",
-    "ResidualEstimate",
-    "ResolutionError",
-    "SecondOrderPhysics",
-    "SimulationError",
-    "draw_chebyshev",
-    "draw_mlp",
-    "fit_chebyshev_hammerstein",
-    "fit_percent",
-    "estimate_initial_state",
-    "fit_physics",
-    "fit_residual",
-    "incompatibility_certificates",
-    "mismatch",
-    "reestimate_shift",
     "register_parameters",
-    "rmse",
+    # records and signals
+    "Experiment",
+    "ExperimentSource",
+    "Files",
+    "Simulated",
+    "chirp",
+    "cosine",
+    "multisine",
+    "pseudorandom",
+    "sine",
+    "time_grid",
+    # simulation
     "simulate",
+    "simulate_record",
+    "output_jacobian",
+    "iir_filter",
+    # fitting
+    "fit_physics",
+    "PhysicsEstimate",
+    "Uncertainty",
+    "IdentifiabilityWarning",
+    "estimate_initial_state",
+    "fit_chebyshev_hammerstein",
+    "fit_residual",
+    "ResidualEstimate",
+    "fit_neural_force",
+    "reestimate_shift",
+    # residuals
+    "AbstractResidual",
+    "ChebyshevHammerstein",
+    "MLPResidual",
+    "MLPForce",
+    "ForceAugmented",
+    "Certificate",
+    "incompatibility_certificates",
+    # measures
+    "mismatch",
+    "fit_percent",
+    "rmse",
+    # diagnostics
+    "diagnose",
+    "Diagnosis",
+    "HybridScore",
+    "compare",
+    "Comparison",
+    "residual_analysis",
+    "ResidualAnalysis",
+    "error_by_amplitude",
+    "AmplitudeBins",
+    "validity_map",
+    "ValidityMap",
+    "harmonic_fingerprint",
+    "HarmonicFingerprint",
+    "assess_adequacy",
+    "Adequacy",
+    "rank_missing_effects",
+    "Ranking",
+    "EffectEvidence",
+    "ModelScore",
+    "model_ladder",
+    "Ladder",
+    "discover_missing_force",
+    "Discovery",
+    # rendering
+    "write_report",
+    "diagnosis_to_dict",
+    "discovery_to_dict",
+    "SCHEMA_VERSION",
+    "diagnosis_figures",
+    "comparison_figure",
+    "comparison_table",
+    "ranking_figure",
+    "ranking_table",
+    "ladder_figure",
+    "residual_analysis_figure",
+    "amplitude_figure",
+    "validity_figure",
+    "discovery_figure",
+    "overlay_figure",
+    "residual_figure",
+    "spectrum_figure",
+    # Lightning
+    "HybridSystem",
+    "PhysicsFit",
+    "ResidualFit",
+    "JointFit",
+    "ExperimentDataModule",
+    # errors
+    "DataError",
+    "DomainError",
+    "ResolutionError",
+    "SimulationError",
 ]
+
+#: Names whose module imports Lightning: loaded on first access, so that ``import torchpaml`` stays light.
+_LIGHTNING = ("ExperimentDataModule", "HybridSystem", "JointFit", "PhysicsFit", "ResidualFit")
+
+
+def __getattr__(name: str):
+    if name in _LIGHTNING:
+        value = getattr(importlib.import_module("torchpaml._training"), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'torchpaml' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

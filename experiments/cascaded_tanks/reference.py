@@ -9,7 +9,7 @@ $$ \dot x_1 = -k_1\sqrt{x_1} + k_4 u, \qquad \dot x_2 = k_2\sqrt{x_1} - k_3\,x_2
    y = x_2 - \max(x_2 - 10, 0), $$
 
 that is ``TwoTanks + sqrt_outflow_upper (g = 1, fixed) + sqrt_outflow_lower (g free) + sensor_clip
-(w = 1, fixed)``. It is fitted by the one :func:`~torchpaml.fit.fit_physics` on the whole
+(w = 1, fixed)``. It is fitted by the one :func:`~torchpaml._fit.fit_physics` on the whole
 ``estimation`` record, with its initial state, from a start chosen by hand (every rate 0.03 1/s,
 k4 = 0.02, levels 5 V), and simulated on ``test`` from that state. The ladder has no such start:
 it reaches each rung from the one below. Prints the parameters and the RMSE on both records.
@@ -24,9 +24,7 @@ from pathlib import Path
 from run import HOLD
 from tanks import SensorClip, TorricelliOutflow, TwoTanks
 
-from torchpaml import Experiment
-from torchpaml.fit import fit_physics
-from torchpaml.simulate.sensitivity import simulate_record
+from torchpaml import Experiment, fit_physics, simulate_record
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "cascaded_tanks"
 

@@ -11,7 +11,7 @@ sample is used, not even the loader's 5-sample initialisation window.
 1. The physics: :class:`tanks.TwoTanks`, linear outflows. With only the lower level measured, the
    upper level's scale is free: k2 and k4 enter the output only as their product (the fit's
    identifiability warning says so), so k2 is fixed and k1, k3, k4 are learned.
-2. :func:`~torchpaml.diagnostics.diagnose` with ``initial_state="estimate"`` and the candidates
+2. :func:`~torchpaml._diagnostics.diagnose` with ``initial_state="estimate"`` and the candidates
    ``sqrt_outflow_upper``, ``sqrt_outflow_lower`` (Torricelli), ``upper_overflow`` (the upper tank
    spills above a rim) and ``sensor_clip`` (the level clips at 10 V), plus the library's ``output_saturation`` and ``dead_zone``, which apply to any physics.
 3. Every rung is scored on ``test``.
@@ -29,11 +29,7 @@ from pathlib import Path
 
 from tanks import SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow
 
-from torchpaml import Experiment
-from torchpaml.diagnostics import diagnose
-from torchpaml.diagnostics.report import write_report
-from torchpaml.physics import DeadZone, OutputSaturation
-from torchpaml.simulate.sensitivity import simulate_record
+from torchpaml import DeadZone, diagnose, diagnosis_to_dict, ranking_table, Experiment, OutputSaturation, simulate_record, write_report
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "cascaded_tanks"
 VALIDATION_SHARE = 0.25
@@ -71,11 +67,11 @@ def main(argv: list[str] | None = None) -> dict:
                        "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}})
         print(f"{step.name}: test RMSE {rmse:.3f} V", flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,
-              "hybrid": [h.to_dict() for h in diagnosis.hybrids], "seconds": time.perf_counter() - start}
+              "hybrid": diagnosis_to_dict(diagnosis)["hybrid"], "seconds": time.perf_counter() - start}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "cascaded_tanks.json").write_text(json.dumps(result, indent=2))
     for ranking in diagnosis.ladder.rankings:
-        print(ranking.table())
+        print(ranking_table(ranking))
     print(diagnosis.verdict)
     print(f"wrote {args.out / 'cascaded_tanks.json'} in {result['seconds']:.0f} s")
     return result

@@ -19,8 +19,15 @@ from __future__ import annotations
 
 import torch
 
-from torchpaml.parameters import Interval, PhysicalParameter, Positive, register_parameters
-from torchpaml.physics import AbstractEffect, AbstractPhysics, state_vector
+from torchpaml import (
+    AbstractEffect,
+    AbstractPhysics,
+    Interval,
+    PhysicalParameter,
+    Positive,
+    register_parameters,
+    state_vector,
+)
 
 __all__ = ["CLIP_LEVEL", "MAX_SPILL_RATE", "SensorClip", "TorricelliOutflow", "TwoTanks", "UpperOverflow"]
 
@@ -110,7 +117,7 @@ class UpperOverflow(AbstractEffect):
     The rate $c$ is bounded by :data:`MAX_SPILL_RATE`: a spill faster than one sample interval is a hard
     cap on the 4 s grid, and the data cannot tell it from an instant one. Unbounded, the fit drove $c$ to
     40 1/s, where the RK4 step (4 s) no longer resolves the spill and the integration error, not the
-    physics, fitted the data (the step check of :func:`~torchpaml.fit.fit_physics` refuses that optimum).
+    physics, fitted the data (the step check of :func:`~torchpaml._fit.fit_physics` refuses that optimum).
     """
 
     name, equation = "upper_overflow", "- c*max(x_upper - h*k4/k1, 0), s of it into the lower tank"

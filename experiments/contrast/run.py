@@ -32,7 +32,7 @@ from pathlib import Path
 
 import torch
 
-from torchpaml.training.cli import run_lightning
+from torchpaml.cli.lightning import run_lightning
 
 CONFIGS = Path(__file__).resolve().parents[1] / "paper"
 RESIDUALS = ("chebyshev", "mlp_output", "mlp_ode")

@@ -10,8 +10,7 @@ Between them they act through damping, stiffness and the input:
 
 from __future__ import annotations
 
-from torchpaml.parameters import PhysicalParameter, Real, register_parameters
-from torchpaml.physics import AbstractEffect
+from torchpaml import AbstractEffect, PhysicalParameter, Real, register_parameters
 
 
 class _Force(AbstractEffect):

@@ -5,7 +5,7 @@ r"""Discovery on simulated records: four forces outside the library, one inside 
 Each case: the oscillator (zeta = 0.2, omega0 = 2 rad/s, g = 4) plus the hidden force generates a
 pseudorandom training record and a multisine validation record (30 s at 20 Hz, 2 % output noise).
 The diagnosed physics is the oscillator alone, started 25-75 % off. The library is ranked on it
-(two refits), then :func:`~torchpaml.diagnostics.discover_missing_force` runs. The noise floor is
+(two refits), then :func:`~torchpaml._diagnostics.discover_missing_force` runs. The noise floor is
 the validation mismatch of the noise-free record.
 
 Writes ``DIR/discovery_cases.json`` (per case: the truth, ``discovery.json``'s content, the floor
@@ -22,11 +22,16 @@ from pathlib import Path
 import torch
 from forces import OUTSIDE
 
-from torchpaml import Oscillator
-from torchpaml.data import Simulated
-from torchpaml.diagnostics import discover_missing_force, rank_missing_effects
-from torchpaml.metrics import mismatch
-from torchpaml.physics import CoulombFriction, default_effects
+from torchpaml import (
+    discovery_to_dict,
+    CoulombFriction,
+    default_effects,
+    discover_missing_force,
+    mismatch,
+    Oscillator,
+    rank_missing_effects,
+    Simulated,
+)
 
 NOISE = 0.02
 
@@ -76,7 +81,7 @@ def main(argv: list[str] | None = None) -> dict:
     for name, (true, system) in cases().items():
         start = time.perf_counter()
         found, floor = discover(system)
-        content = found.to_dict()
+        content = discovery_to_dict(found)
         seconds = time.perf_counter() - start
         results[name] = {"truth": true, "discovery": content, "floor": floor, "seconds": seconds}
         errors = " / ".join("—" if v is None else f"{100 * v:.2f}" for v in content["nrmse_validation"].values())

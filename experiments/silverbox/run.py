@@ -6,15 +6,15 @@ The official split (``shared/data/silverbox/README.md``): ``train_multisine`` fo
 :data:`VALIDATION_SHARE` held out inside it for validation; ``test_multisine``,
 ``test_arrow_no_extrapolation`` and ``test_arrow_full`` for the test. On each test record the first
 :data:`INIT_SAMPLES` samples may set the initial state: the model's state is estimated on them
-(:func:`~torchpaml.fit.estimate_initial_state`) and the remaining samples are scored.
+(:func:`~torchpaml._fit.estimate_initial_state`) and the remaining samples are scored.
 
-1. The physics: :class:`~torchpaml.physics.Oscillator`, $\ddot y + 2\zeta\omega_0\dot y + \omega_0^2 y = g u$,
+1. The physics: :class:`~torchpaml._physics.Oscillator`, $\ddot y + 2\zeta\omega_0\dot y + \omega_0^2 y = g u$,
    all three learnable, started from the measured frequency response (:func:`frequency_response_start`).
-2. :func:`~torchpaml.diagnostics.diagnose` with the nine library effects: the ladder adds what the
+2. :func:`~torchpaml._diagnostics.diagnose` with the nine library effects: the ladder adds what the
    validation asks for; the Chebyshev residual goes on the first and the last rung.
 3. Every rung is scored on the test records.
 4. With ``--discover``, the discovery of a force outside the library
-   (:func:`~torchpaml.diagnostics.discover_missing_force`) runs too; its model is scored on the test
+   (:func:`~torchpaml._diagnostics.discover_missing_force`) runs too; its model is scored on the test
    records and ``discovery`` is added to the JSON (``discovery.json``'s content, with ``rmse``/``nrmse``).
 
 Writes ``DIR/silverbox.json``::
@@ -39,11 +39,17 @@ from pathlib import Path
 
 import numpy as np
 
-from torchpaml import Experiment, estimate_initial_state
-from torchpaml.diagnostics import diagnose
-from torchpaml.diagnostics.report import write_report
-from torchpaml.physics import Oscillator, default_effects
-from torchpaml.simulate.sensitivity import simulate_record
+from torchpaml import (
+    diagnosis_to_dict,
+    discovery_to_dict,
+    default_effects,
+    diagnose,
+    estimate_initial_state,
+    Experiment,
+    Oscillator,
+    simulate_record,
+    write_report,
+)
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "silverbox"
 TESTS = ("test_multisine", "test_arrow_no_extrapolation", "test_arrow_full")
@@ -111,11 +117,11 @@ def main(argv: list[str] | None = None) -> dict:
                        "nrmse": nrmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,
-              "hybrid": [h.to_dict() for h in diagnosis.hybrids], "seconds": time.perf_counter() - start}
+              "hybrid": diagnosis_to_dict(diagnosis)["hybrid"], "seconds": time.perf_counter() - start}
     if diagnosis.discovery is not None:
         discovered = diagnosis.discovery.discovered
         rmse, nrmse = test_scores(discovered.model, tests) if discovered is not None else ({}, {})
-        result["discovery"] = {**diagnosis.discovery.to_dict(), "rmse": rmse, "nrmse": nrmse}
+        result["discovery"] = {**discovery_to_dict(diagnosis.discovery), "rmse": rmse, "nrmse": nrmse}
         result["seconds"] = time.perf_counter() - start
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "silverbox.json").write_text(json.dumps(result, indent=2))

@@ -3,10 +3,16 @@
 import pytest
 import torch
 
-from torchpaml import DataError, Experiment, Oscillator
-from torchpaml.data import Simulated
-from torchpaml.diagnostics import diagnose, rank_missing_effects
-from torchpaml.physics import CoulombFriction, default_effects
+from torchpaml import (
+    CoulombFriction,
+    DataError,
+    default_effects,
+    diagnose,
+    Experiment,
+    Oscillator,
+    rank_missing_effects,
+    Simulated,
+)
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +41,6 @@ def test_diagnose_refuses_missing_samples_before_any_work_and_names_the_gaps(gap
     def no_fit(*args, **kwargs):
         raise AssertionError("diagnose fitted a model before checking the time axis")
 
-    monkeypatch.setattr("torchpaml.diagnostics.ranking.fit_physics", no_fit)
+    monkeypatch.setattr("torchpaml._diagnostics.ranking.fit_physics", no_fit)
     with pytest.raises(DataError, match=r"299 of its 599 steps differ .* first between t = 0.05 and 0.15 s.*resample"):
         diagnose(_physics(), default_effects(), *gappy)

@@ -10,10 +10,7 @@ initial state is estimated; the two best-scored candidates are refitted.
 import torch
 
 from experiment_modules import load
-from torchpaml import Experiment
-from torchpaml.diagnostics import diagnose
-from torchpaml.metrics import mismatch
-from torchpaml.signals import pseudorandom, time_grid
+from torchpaml import diagnose, Experiment, mismatch, pseudorandom, time_grid
 
 tanks = load("cascaded_tanks/tanks.py")
 X0 = torch.tensor([[6.0, 4.0]], dtype=torch.float64)

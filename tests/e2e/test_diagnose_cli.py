@@ -10,14 +10,14 @@ import pytest
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
 from torchpaml.cli import main
-from torchpaml.physics import EFFECTS
+from torchpaml import EFFECTS
 
 FIGURES = ("compare", "residual_analysis", "error_by_amplitude", "ranking", "ladder")
 
 USER_MODEL = '''
 import torch
 from torchpaml import SecondOrderPhysics, AbstractPhysics, PhysicalParameter, Positive, Real, register_parameters
-from torchpaml.physics import AbstractEffect
+from torchpaml._physics import AbstractEffect
 
 
 class Spring(SecondOrderPhysics):
@@ -132,7 +132,7 @@ def test_user_physics_and_user_effect_from_a_config(tmp_path):
     script = textwrap.dedent("""
         import torch
         from user_model import Spring, CubicDamping
-        from torchpaml.data import Simulated
+        from torchpaml._data import Simulated
         true = Spring(c=0.8, k=4.0, g=4.0, learn=()) + CubicDamping(0.6)
         for signal, seed, name in (("pseudorandom", 0, "train.csv"), ("multisine", 1, "val.csv")):
             Simulated(true, signal, 1.0, [seed], 30.0, 0.05, noise=0.02).experiments()[0].to_csv(name)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from torchpaml.paper import PaperSetup, reproduce_alpha
+from torchpaml._paper import PaperSetup, reproduce_alpha
 
 ROOT = Path(__file__).resolve().parents[2]
 

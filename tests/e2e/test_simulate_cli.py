@@ -5,9 +5,8 @@ import sys
 
 import pytest
 
-from torchpaml import Experiment, simulate
-from torchpaml.physics.registry import build_model
-from torchpaml.signals import pseudorandom_knots
+from torchpaml import build_model, Experiment, simulate
+from torchpaml._signals import pseudorandom_knots
 
 
 def run(*args, cwd):

@@ -9,7 +9,7 @@ import torch
 import yaml
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
-from torchpaml.training.cli import run_lightning
+from torchpaml.cli.lightning import run_lightning
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = sorted((ROOT / "experiments").rglob("*.yaml"))
@@ -123,12 +123,12 @@ trainer:
   enable_progress_bar: false
   logger: {{class_path: lightning.pytorch.loggers.TensorBoardLogger, init_args: {{save_dir: {tmp_path}, name: ddp}}}}
 model:
-  class_path: torchpaml.training.PhysicsFit
+  class_path: torchpaml._training.PhysicsFit
   init_args:
     physics: {{class_path: torchpaml.Oscillator, init_args: {{zeta: 1.0, omega0: 2.0, learn: [zeta]}}}}
 data:
   train:
-    class_path: torchpaml.training.Simulated
+    class_path: torchpaml._training.Simulated
     init_args:
       system: {{class_path: torchpaml.Oscillator, init_args: {{zeta: 0.4, omega0: 2.0, learn: []}}}}
       signal: pseudorandom
@@ -148,7 +148,7 @@ data:
     "override, message",
     [
         ("--data.train.init_args.signal=square", "square"),
-        ("--data.train=torchpaml.training.Files", "paths"),
+        ("--data.train=torchpaml._training.Files", "paths"),
     ],
 )
 def test_bad_configs_exit_non_zero_with_the_reason(tmp_path, override, message):
@@ -163,7 +163,7 @@ def test_a_missing_data_file_exits_2_and_names_the_file(tmp_path):
     config = ROOT / "experiments/paper/alpha4_chebyshev.yaml"
     missing = tmp_path / "nowhere.csv"
     done = subprocess.run([sys.executable, "-m", "torchpaml", "fit", "--config", str(config),
-                           "--data.train=torchpaml.training.Files", f"--data.train.paths=[{missing}]",
+                           "--data.train=torchpaml._training.Files", f"--data.train.paths=[{missing}]",
                            "--trainer.logger=false"], capture_output=True, text=True, cwd=tmp_path, timeout=300)
     assert done.returncode == 2
     assert f"no such file: {missing}" in done.stderr

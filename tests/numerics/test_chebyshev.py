@@ -4,10 +4,9 @@ import math
 
 import torch
 
-from torchpaml import ChebyshevHammerstein
-from torchpaml.certificates import draw_chebyshev
-from torchpaml.residual import chebyshev_t
-from torchpaml.signals import cosine, time_grid
+from torchpaml import ChebyshevHammerstein, cosine, time_grid
+from torchpaml._certificates import draw_chebyshev
+from torchpaml._residual import chebyshev_t
 
 
 def test_chebyshev_identity_T_k_of_cos_is_cos_k():

@@ -15,9 +15,7 @@ import pytest
 import torch
 from scipy.integrate import solve_ivp
 
-from torchpaml import Oscillator, SimulationError, simulate
-from torchpaml.physics import CubicStiffness
-from torchpaml.signals import multisine, time_grid
+from torchpaml import CubicStiffness, multisine, Oscillator, simulate, SimulationError, time_grid
 
 
 def _duffing(zeta=0.2, k3=2.0):
@@ -173,7 +171,7 @@ def test_unstable_parameters_raise_a_simulation_error(drive):
 
 
 def test_a_warm_start_converges_to_the_same_solution(drive):
-    from torchpaml.simulate.shooting import solve_rk4
+    from torchpaml._simulate.shooting import solve_rk4
 
     t, u = drive
     x0 = torch.zeros(1, 2)
@@ -196,7 +194,7 @@ class _UserDuffing(torch.nn.Module):
 def test_any_memory_layout_and_start_give_the_same_solution(drive):
     """The library's composed model (state-major derivative, Newton started from its linear base's
     trajectory) and the same ODE written by a user (row-major, started from x0 held): one solution."""
-    from torchpaml.simulate.shooting import simulate_rk4
+    from torchpaml._simulate.shooting import simulate_rk4
 
     t, u = drive
     x0 = torch.tensor([[0.2, -0.1]], dtype=torch.float64)
@@ -209,7 +207,7 @@ def test_any_memory_layout_and_start_give_the_same_solution(drive):
 def test_simulate_warm_starts_from_the_last_solution_and_gives_the_same_output(drive):
     """``simulate(..., warm=w)``: the second call starts Newton from the first one's states and needs fewer
     sweeps, and neither call's output depends on the warm start (1e-12)."""
-    from torchpaml.simulate import shooting
+    from torchpaml._simulate import shooting
 
     t, u = drive
     sweeps = []
@@ -239,7 +237,7 @@ def test_simulate_warm_starts_from_the_last_solution_and_gives_the_same_output(d
 def test_the_linear_base_of_a_learned_force_is_its_physics():
     """Newton's cold start (the linear base's exact trajectory) reaches through physics + effects and a learned force."""
     from torchpaml import MLPForce, Pendulum
-    from torchpaml.residual.mlp import ForceAugmented
+    from torchpaml._residual.mlp import ForceAugmented
 
     physics = Oscillator(zeta=0.2, omega0=2.0, gain=4.0)
     assert physics.linear_base() is physics

@@ -7,7 +7,7 @@ the loop to rounding, 1e-12 relative for contracting maps (spectral radius below
 import pytest
 import torch
 
-from torchpaml.simulate.scan import linear_recurrence
+from torchpaml._simulate.scan import linear_recurrence
 
 
 def _sequential(A, b, z0):

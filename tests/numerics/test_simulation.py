@@ -13,7 +13,7 @@ import torch
 from scipy import integrate, signal
 
 from torchpaml import Oscillator, Pendulum, simulate
-from torchpaml.signals import pseudorandom, pseudorandom_knots, sine
+from torchpaml._signals import pseudorandom, pseudorandom_knots, sine
 
 
 def _relative(a, b):
@@ -118,7 +118,7 @@ def test_zero_order_hold_matches_scipy_lsim_and_rk4_converges_to_it():
     import numpy as np
     from scipy.signal import lsim
 
-    from torchpaml.physics import CubicStiffness
+    from torchpaml._physics import CubicStiffness
 
     t = torch.arange(400, dtype=torch.float64) * 0.1
     u = (torch.sin(0.7 * t) + (torch.arange(400) % 7 == 0).double())[None, :, None]  # steps: the holds differ
@@ -145,8 +145,8 @@ def test_exact_jacobian_matches_reverse_mode_autograd(zeta, hold):
     # initial state's columns, whose oracle is the free response C Phi^k e_i
     from torch.func import functional_call
 
-    from torchpaml.signals import multisine
-    from torchpaml.simulate import output_jacobian, raw_parameters
+    from torchpaml._signals import multisine
+    from torchpaml._simulate import output_jacobian, raw_parameters
 
     t = torch.arange(400, dtype=torch.float64) * 0.05
     u = torch.cat([multisine(t, 1.0, [0.05, 0.1, 0.3], seed=seed) for seed in (0, 1)])

@@ -8,8 +8,7 @@ pieces that every number there rests on: loading, the split, the initial-state r
 import pytest
 
 from experiment_modules import load
-from torchpaml import Experiment, fit_physics
-from torchpaml.simulate.sensitivity import simulate_record
+from torchpaml import Experiment, fit_physics, simulate_record
 
 silverbox = load("silverbox/run.py")
 cascaded = load("cascaded_tanks/run.py")

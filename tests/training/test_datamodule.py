@@ -3,8 +3,7 @@
 import pytest
 import torch
 
-from torchpaml import DataError, Experiment, Oscillator
-from torchpaml.training import ExperimentDataModule, Files, Simulated
+from torchpaml import DataError, Experiment, ExperimentDataModule, Files, Oscillator, Simulated
 
 
 def truth():

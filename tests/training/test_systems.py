@@ -4,8 +4,20 @@ import lightning as L
 import pytest
 import torch
 
-from torchpaml import ChebyshevHammerstein, Experiment, Oscillator, Pendulum, fit_chebyshev_hammerstein, fit_physics, mismatch
-from torchpaml.training import ExperimentDataModule, JointFit, PhysicsFit, ResidualFit, Simulated
+from torchpaml import (
+    ChebyshevHammerstein,
+    Experiment,
+    ExperimentDataModule,
+    fit_chebyshev_hammerstein,
+    fit_physics,
+    JointFit,
+    mismatch,
+    Oscillator,
+    Pendulum,
+    PhysicsFit,
+    ResidualFit,
+    Simulated,
+)
 
 PENDULUM = dict(system=Pendulum(zeta=0.5, omega0=2.0, learn=()), amplitude=4.0, duration=40.0)
 

@@ -4,9 +4,7 @@ import pytest
 import torch
 
 from experiment_modules import load
-from torchpaml import simulate
-from torchpaml.physics import CubicStiffness, OutputSaturation, default_effects
-from torchpaml.signals import pseudorandom, time_grid
+from torchpaml import CubicStiffness, default_effects, OutputSaturation, pseudorandom, simulate, time_grid
 
 tanks = load("cascaded_tanks/tanks.py")
 
@@ -42,7 +40,7 @@ def test_the_default_candidates_that_apply_to_first_order_physics():
 
 def test_first_order_physics_with_the_default_candidates_runs_and_lists_the_skipped_ones():
     from torchpaml import Experiment
-    from torchpaml.diagnostics import rank_missing_effects
+    from torchpaml._diagnostics import rank_missing_effects
 
     truth = tanks.TwoTanks(0.02, 0.01, 0.01, 0.05) + OutputSaturation(0.1)
     t = time_grid(800.0, 4.0)

@@ -1,6 +1,7 @@
 """Certificates: the Chebyshev residual is orthogonal to the physics and its sensitivity; the MLP is not."""
 
-from torchpaml import Oscillator, draw_chebyshev, draw_mlp, incompatibility_certificates
+from torchpaml import incompatibility_certificates, Oscillator
+from torchpaml._certificates import draw_chebyshev, draw_mlp
 
 
 def _worst(draw, duration):

@@ -2,9 +2,7 @@
 
 import pytest
 
-from torchpaml import Experiment, Oscillator
-from torchpaml.diagnostics import compare
-from torchpaml.signals import pseudorandom, time_grid
+from torchpaml import compare, comparison_figure, comparison_table, Experiment, Oscillator, pseudorandom, time_grid
 
 
 @pytest.fixture
@@ -23,8 +21,8 @@ def test_the_true_model_scores_perfectly_and_a_wrong_one_does_not(record):
     y_wrong = Oscillator(zeta=0.6)(t, u).detach()
     assert wrong["rmse"] == pytest.approx(float((y - y_wrong).pow(2).mean().sqrt()), rel=1e-12)
     assert wrong["fit_pct"] == pytest.approx(100 * (1 - float((y - y_wrong).norm() / (y - y.mean()).norm())), rel=1e-12)
-    assert "| prbs | wrong |" in result.table()
-    assert "truth (100.0 % fit)" in [line.get_label() for line in result.figure().axes[0].lines]
+    assert "| prbs | wrong |" in comparison_table(result)
+    assert "truth (100.0 % fit)" in [line.get_label() for line in comparison_figure(result).axes[0].lines]
 
 
 def test_experiment_names_must_differ(record):

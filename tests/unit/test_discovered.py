@@ -6,10 +6,9 @@ import pytest
 import torch
 from jsonargparse import ArgumentParser
 
-from torchpaml import Oscillator
-from torchpaml.fit import select_support, stlsq
-from torchpaml.physics import AbstractEffect, DiscoveredForce, candidate_terms
-from torchpaml.physics.discovered import evaluate_term
+from torchpaml import AbstractEffect, candidate_terms, DiscoveredForce, Oscillator
+from torchpaml._fit import select_support, stlsq
+from torchpaml._physics.discovered import evaluate_term
 
 
 def test_the_library_has_28_distinct_terms_that_all_evaluate():

@@ -3,20 +3,22 @@
 import pytest
 import torch
 
-from torchpaml import Oscillator, Pendulum, simulate
-from torchpaml.physics import (
-    EFFECTS,
+from torchpaml import (
     ComposedModel,
     CubicStiffness,
     DeadZone,
+    default_effects,
+    EFFECTS,
     InputSaturation,
+    Oscillator,
     OutputSaturation,
+    Pendulum,
     PendulumRestoring,
     QuadraticDamping,
-    default_effects,
+    simulate,
 )
-from torchpaml.physics.effects import _tanh_ratio
-from torchpaml.signals import pseudorandom, pseudorandom_knots, sine
+from torchpaml._physics.effects import _tanh_ratio
+from torchpaml._signals import pseudorandom, pseudorandom_knots, sine
 
 TOL = dict(rtol=1e-7, atol=1e-9)
 TIGHT = dict(rtol=1e-9, atol=1e-11)
@@ -90,7 +92,7 @@ def test_composition_flattens_names_parameters_and_rejects_clashes():
 
 
 def test_effects_need_second_order_physics():
-    from torchpaml.physics import AbstractPhysics
+    from torchpaml._physics import AbstractPhysics
 
     class Tank(AbstractPhysics):
         state_names = ("level",)

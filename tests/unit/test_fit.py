@@ -6,21 +6,23 @@ import pytest
 import torch
 
 from torchpaml import (
-    Experiment,
     ChebyshevHammerstein,
-    ForceAugmented,
-    MLPForce,
-    MLPResidual,
-    Oscillator,
+    cosine,
+    Experiment,
     fit_chebyshev_hammerstein,
     fit_physics,
     fit_residual,
+    ForceAugmented,
     mismatch,
+    MLPForce,
+    MLPResidual,
+    Oscillator,
+    pseudorandom,
     reestimate_shift,
     simulate,
+    sine,
 )
-from torchpaml.certificates import draw_chebyshev
-from torchpaml.signals import cosine, pseudorandom, sine
+from torchpaml._certificates import draw_chebyshev
 
 
 def test_bounded_fit_recovers_zeta(grid):
@@ -39,7 +41,7 @@ def test_an_optimum_beyond_a_bound_stops_exactly_on_it(grid):
 
 
 def test_nonlinear_fit_recovers_the_generating_parameters(grid):
-    from torchpaml.physics import CubicStiffness
+    from torchpaml._physics import CubicStiffness
 
     t = grid[::5]
     u = pseudorandom(t, 1.0, seed=1)
@@ -52,8 +54,8 @@ def test_nonlinear_fit_recovers_the_generating_parameters(grid):
 
 
 def test_jacobian_matches_central_differences_of_the_residual(grid):
-    from torchpaml.physics import CubicStiffness
-    from torchpaml.simulate import raw_parameters
+    from torchpaml._physics import CubicStiffness
+    from torchpaml._simulate import raw_parameters
 
     t = grid[::5]
     u = pseudorandom(t, 1.0, seed=1)
@@ -134,7 +136,7 @@ def test_first_order_shift_vanishes_for_an_orthogonal_residual():
     # so re-estimating zeta on y - r (or on y) lands on the same value.
     import math
 
-    from torchpaml.signals import time_grid
+    from torchpaml._signals import time_grid
 
     t = time_grid(40 * math.pi, 2 * math.pi / 400)
     u = cosine(t, 2.0, 1.0)
@@ -162,7 +164,7 @@ def test_force_augmented_physics_simulates_and_differentiates(grid):
 def test_a_record_held_zero_order_is_fitted_as_held(grid):
     # data from a DAC (the input constant between samples): a record that says so recovers the generating
     # parameters, linear (exact path) and nonlinear (RK4); read as first-order hold, the same data bias the fit
-    from torchpaml.physics import CubicStiffness
+    from torchpaml._physics import CubicStiffness
 
     t = grid[::10]  # h = 0.1 s: the holds differ visibly
     u = pseudorandom(t, 1.0, seed=3)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from torchpaml.diagnostics.harmonics import harmonic_fingerprint
+from torchpaml import harmonic_fingerprint
 
 T = np.arange(0, 40 * math.pi, 0.01)  # 20 periods of 1 rad/s
 
@@ -41,8 +41,8 @@ def test_the_papers_linearised_pendulum_leaves_odd_harmonics():
     import torch
 
     from torchpaml import Experiment, Oscillator, fit_physics
-    from torchpaml.paper import PaperSetup, _measure
-    from torchpaml.signals import sine, time_grid
+    from torchpaml._paper import PaperSetup, _measure
+    from torchpaml._signals import sine, time_grid
 
     t = time_grid(80.0, 0.01)
     u = sine(t, 4.0, 1.0)

@@ -3,9 +3,7 @@
 import pytest
 import torch
 
-from torchpaml import Experiment, Oscillator, fit_physics
-from torchpaml.physics import CubicStiffness
-from torchpaml.signals import pseudorandom, time_grid
+from torchpaml import CubicStiffness, Experiment, fit_physics, Oscillator, pseudorandom, time_grid
 
 X0 = torch.tensor([[0.8, -1.5]], dtype=torch.float64)
 

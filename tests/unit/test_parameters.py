@@ -3,8 +3,7 @@
 import pytest
 import torch
 
-from torchpaml import Oscillator
-from torchpaml.parameters import Interval, Positive
+from torchpaml import Interval, Oscillator, Positive
 
 
 def test_constraints_round_trip():

@@ -3,14 +3,25 @@
 import pytest
 import torch
 
-from torchpaml import Experiment, Oscillator, simulate
-from torchpaml.diagnostics import rank_missing_effects
-from torchpaml.diagnostics.ranking import Secant, _first_order
-from torchpaml.fit import fit_physics
-from torchpaml.simulate import simulate_record
-from torchpaml.parameters import PhysicalParameter, Positive, register_parameters
-from torchpaml.physics import AbstractEffect, CubicStiffness, DeadZone, InputSaturation, QuadraticDamping
-from torchpaml.signals import pseudorandom, time_grid
+from torchpaml import (
+    AbstractEffect,
+    CubicStiffness,
+    DeadZone,
+    Experiment,
+    fit_physics,
+    InputSaturation,
+    Oscillator,
+    PhysicalParameter,
+    Positive,
+    pseudorandom,
+    QuadraticDamping,
+    rank_missing_effects,
+    register_parameters,
+    simulate,
+    simulate_record,
+    time_grid,
+)
+from torchpaml._diagnostics.ranking import Secant, _first_order
 
 
 @pytest.fixture(scope="module")
@@ -62,8 +73,8 @@ def test_the_first_order_step_starts_the_refit_nearer():
     """The refit from the first-order Gauss-Newton step (strength and the physics' own parameters) reaches the
     optimum of a refit from the strength alone (to 1e-6, both at the ranking's tolerance), in fewer simulations.
     The case of benchmarks/bench_ranking.py: a strong cubic term (k3 = 2), 2 % noise."""
-    from torchpaml.data import Simulated
-    from torchpaml.diagnostics.ranking import REFIT_CRITERION_STEP, TangentLinear, refit_effect
+    from torchpaml._data import Simulated
+    from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, TangentLinear, refit_effect
 
     true = Oscillator(zeta=0.2, omega0=2.0, gain=4.0, learn=()) + CubicStiffness(2.0)
     record = Simulated(true, "pseudorandom", 1.5, [0], 30.0, 0.05, noise=0.02).experiments()[0]
@@ -137,7 +148,7 @@ def test_tangent_linear_outputs_equal_the_simulated_change(duffing, effect):
     # the effect's force along the baseline. Against RK4 simulations of base + effect (differenced against the
     # same model at strength 0, so RK4's own error cancels) it differs by O(delta) and by the first-order hold
     # of the force between samples, O((h omega0)^2) = 1e-2 here: held to 5 %.
-    from torchpaml.diagnostics.ranking import TangentLinear
+    from torchpaml._diagnostics.ranking import TangentLinear
 
     record = duffing[0]
     base, _, _ = fitted(record)
@@ -155,7 +166,7 @@ def test_tangent_linear_outputs_equal_the_simulated_change(duffing, effect):
 
 def test_candidates_that_do_not_apply_are_skipped_and_listed(duffing):
     # a user's second-order physics without omega0: pendulum_restoring (scaled by omega0) cannot act on it
-    from torchpaml.physics import PendulumRestoring, SecondOrderPhysics
+    from torchpaml._physics import PendulumRestoring, SecondOrderPhysics
 
     class Spring(SecondOrderPhysics):
         def __init__(self, c=0.8, k=4.0, g=4.0, *, learn=("c", "k", "g")):

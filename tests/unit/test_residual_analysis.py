@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy import signal as sps
 
-from torchpaml.diagnostics import residual_analysis
+from torchpaml import residual_analysis, residual_analysis_figure
 
 N = 5000
 
@@ -36,7 +36,7 @@ def test_residual_that_follows_the_input_fails_independence_at_the_right_lag(rng
     result = residual_analysis(u, e)
     peak = result.cross_lags[np.argmax(np.abs(result.cross_correlation))]
     assert peak == 3 and 3 in result.cross_correlation_outside
-    assert len(result.figure().axes) == 2
+    assert len(residual_analysis_figure(result).axes) == 2
 
 
 def test_the_record_must_be_longer_than_the_lags():

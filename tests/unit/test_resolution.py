@@ -1,4 +1,4 @@
-"""The step check: a fit's output must not depend on the RK4 step (torchpaml.fit.resolution).
+"""The step check: a fit's output must not depend on the RK4 step (torchpaml._fit.resolution).
 
 A lightly damped Duffing oscillator (zeta = 0.05, omega0 = 2, k3 = 0.5) driven by pseudorandom knots
 every 4 s for 200 s. The device is the continuous system: RK4 at 32 steps per sample (its error is far
@@ -11,11 +11,20 @@ import copy
 import pytest
 import torch
 
-from torchpaml import Experiment, Oscillator, ResolutionError, fit_physics, simulate
-from torchpaml.fit import resolution
-from torchpaml.fit.resolution import STEP_TOLERANCE, step_gap
-from torchpaml.physics import ConstantForce, CubicStiffness
-from torchpaml.signals import pseudorandom, time_grid
+from torchpaml import (
+    ranking_table,
+    ConstantForce,
+    CubicStiffness,
+    Experiment,
+    fit_physics,
+    Oscillator,
+    pseudorandom,
+    ResolutionError,
+    simulate,
+    time_grid,
+)
+from torchpaml._fit import resolution
+from torchpaml._fit.resolution import STEP_TOLERANCE, step_gap
 
 TRUTH = {"zeta": 0.05, "omega0": 2.0, "gain": 4.0, "cubic_stiffness.k3": 0.5}
 
@@ -71,7 +80,7 @@ def test_an_added_effect_keeps_the_resolution_the_physics_was_fitted_at():
 
 
 def test_a_ranking_reports_an_unresolved_refit_and_does_not_recommend_it(monkeypatch):
-    from torchpaml.diagnostics import rank_missing_effects
+    from torchpaml._diagnostics import rank_missing_effects
 
     monkeypatch.setattr(resolution, "MAX_SUBSTEPS", 1)
     train, validation = record(0.35).window(0, 400, "train"), record(0.35).window(400, None, "validation")
@@ -81,4 +90,4 @@ def test_a_ranking_reports_an_unresolved_refit_and_does_not_recommend_it(monkeyp
     assert shortlisted.refit is None and shortlisted.failure.startswith("refit unresolved: ")
     assert other.failure is None
     assert ranking.recommended is None
-    assert "refit unresolved" in ranking.table()
+    assert "refit unresolved" in ranking_table(ranking)

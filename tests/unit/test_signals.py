@@ -2,7 +2,7 @@
 
 import torch
 
-from torchpaml.signals import chirp, cosine, multisine, pseudorandom, pseudorandom_knots, sine, time_grid
+from torchpaml._signals import chirp, cosine, multisine, pseudorandom, pseudorandom_knots, sine, time_grid
 
 
 def test_time_grid_spacing_and_length():

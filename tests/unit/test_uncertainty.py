@@ -3,11 +3,18 @@
 import pytest
 import torch
 
-from torchpaml import Experiment, Oscillator, fit_physics
-from torchpaml.fit.uncertainty import IdentifiabilityWarning
-from torchpaml.parameters import PhysicalParameter, Positive, register_parameters
-from torchpaml.physics import AbstractPhysics
-from torchpaml.signals import pseudorandom, time_grid
+from torchpaml import (
+    AbstractPhysics,
+    Experiment,
+    fit_physics,
+    IdentifiabilityWarning,
+    Oscillator,
+    PhysicalParameter,
+    Positive,
+    pseudorandom,
+    register_parameters,
+    time_grid,
+)
 
 TRUTH = {"zeta": 0.2, "omega0": 2.0, "gain": 4.0}
 
@@ -79,7 +86,7 @@ def test_a_combination_the_record_cannot_determine_is_named():
 
 
 def test_a_parameter_driven_to_the_limit_of_its_constraint_is_named_and_the_others_keep_their_errors():
-    from torchpaml.fit.uncertainty import parameter_uncertainty
+    from torchpaml._fit.uncertainty import parameter_uncertainty
 
     generator = torch.Generator().manual_seed(0)
     jacobian = torch.randn(200, 3, generator=generator, dtype=torch.float64)

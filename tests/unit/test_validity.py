@@ -4,9 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from torchpaml import Oscillator, Pendulum
-from torchpaml.diagnostics.validity import error_by_amplitude, validity_map
-from torchpaml.data import Simulated
+from torchpaml import error_by_amplitude, Oscillator, Pendulum, Simulated, validity_figure, validity_map
 
 
 def test_binned_mismatch_matches_a_direct_computation():
@@ -29,4 +27,4 @@ def test_the_linearised_pendulum_holds_for_small_swings_and_breaks_for_large_one
     small, large = result.mismatch[0], result.mismatch[-1]
     assert np.all(small < 0.02) and np.all(large > 0.3)  # sin x ≈ x to 1 % below |x| ≈ 0.25 rad
     assert np.all(np.diff(result.mismatch, axis=0) > 0)  # worse with every step up in amplitude
-    assert len(result.figure().axes) == 2  # the map and its colour bar
+    assert len(validity_figure(result).axes) == 2  # the map and its colour bar

@@ -1,0 +1,194 @@
+"""Experiments: measured or simulated input/output records, with validated CSV and NPZ I/O."""
+
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from torchpaml._errors import DataError
+from torchpaml._simulate.lti import check_hold
+from torchpaml._simulate.simulator import uniform_step
+
+__all__ = ["Experiment"]
+
+_COLUMNS = ("t", "u", "y")
+
+
+@dataclass
+class Experiment:
+    """One record of a device: time t (time,) in s, input u (time, n_u), output y (time, n_y), float64.
+
+    ``hold`` says how the input moved between samples: ``"foh"`` (linearly, the default) or ``"zoh"``
+    (held constant until the next sample, as a DAC plays a sampled signal); every simulation of the
+    record (fits, rankings, scores) holds it so.
+
+    ``validate`` runs on construction: the lengths agree, values are finite, time strictly increases.
+    Use :meth:`batch` to get the (1, time, channel) tensors the models take.
+    """
+
+    t: torch.Tensor
+    u: torch.Tensor
+    y: torch.Tensor
+    name: str = "experiment"
+    metadata: dict = field(default_factory=dict)
+    hold: str = "foh"
+
+    def __post_init__(self):
+        self.t = torch.as_tensor(self.t, dtype=torch.float64).detach().reshape(-1)
+        self.u = _as_columns(self.u, "u")
+        self.y = _as_columns(self.y, "y")
+        check_hold(self.hold)
+        self.validate()
+
+    def validate(self) -> None:
+        """Raise :class:`DataError` naming the problem and its fix."""
+        where = f"experiment {self.name!r}"
+        if len(self.t) == 0:
+            raise DataError(f"{where} is empty: it has no samples; check the file or the slicing that made it")
+        if not (len(self.t) == len(self.u) == len(self.y)):
+            raise DataError(
+                f"{where}: length mismatch, t has {len(self.t)} samples, u {len(self.u)}, y {len(self.y)}; "
+                "every column needs one value per time sample"
+            )
+        for column, values in (("t", self.t), ("u", self.u), ("y", self.y)):
+            bad = ~torch.isfinite(values)
+            if bool(bad.any()):
+                row = int(bad.reshape(len(values), -1).any(dim=1).nonzero()[0])
+                raise DataError(
+                    f"{where}: column {column!r} has {int(bad.sum())} NaN/inf value(s), first at row {row}; "
+                    "drop or interpolate those samples before fitting"
+                )
+        steps = torch.diff(self.t)
+        if bool((steps <= 0).any()):
+            row = int((steps <= 0).nonzero()[0]) + 1
+            raise DataError(
+                f"{where}: time must be strictly increasing, but t[{row}] = {float(self.t[row]):.6g} s follows "
+                f"t[{row - 1}] = {float(self.t[row - 1]):.6g} s; sort the rows and remove duplicate time stamps"
+            )
+
+    @property
+    def dt(self) -> float:
+        """The sampling interval; raises :class:`DataError` if the sampling is not uniform."""
+        try:
+            return uniform_step(self.t)
+        except DataError as err:
+            raise DataError(f"experiment {self.name!r}: {err}") from None
+
+    def require_uniform(self, purpose: str) -> float:
+        """The sampling interval; a :class:`DataError` that names the gaps and the fix if it is not uniform."""
+        steps = torch.diff(self.t)
+        usual = float(steps.median())
+        gaps = (steps - usual).abs() > 1e-6 * usual
+        if not bool(gaps.any()):
+            return usual
+        first = int(gaps.nonzero()[0])
+        raise DataError(
+            f"experiment {self.name!r} is not uniformly sampled: {int(gaps.sum())} of its {len(steps)} steps differ "
+            f"from the usual {usual:.6g} s (from {float(steps.min()):.6g} to {float(steps.max()):.6g} s), the first "
+            f"between t = {float(self.t[first]):.6g} and {float(self.t[first + 1]):.6g} s. {purpose} needs uniform "
+            "sampling: resample the record onto a uniform grid, or use model_ladder / rank_missing_effects, which "
+            "simulate records with missing samples directly"
+        )
+
+    def window(self, start: int | None = None, stop: int | None = None, name: str | None = None) -> Experiment:
+        """Samples ``start:stop`` as an experiment of their own (named ``name``, else this one's), with its hold."""
+        return Experiment(self.t[start:stop], self.u[start:stop], self.y[start:stop], name or self.name, self.metadata,
+                          self.hold)
+
+    def batch(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """``(t (time,), u (1, time, n_u), y (1, time, n_y))``."""
+        return self.t, self.u[None], self.y[None]
+
+    @classmethod
+    def records(cls, t: torch.Tensor, u: torch.Tensor, y: torch.Tensor, name: str = "record") -> list[Experiment]:
+        """One experiment per batch row of t (time,), u (batch, time, n_u), y (batch, time, n_y)."""
+        return [cls(t, u[i], y[i], f"{name}{i}") for i in range(u.shape[0])]
+
+    # -- I/O ---------------------------------------------------------------------------------
+    @classmethod
+    def from_csv(cls, path: str | Path, name: str | None = None, hold: str | None = None) -> Experiment:
+        """Read a CSV with header ``t,u,y`` (extra columns ignored; a first ``# {json}`` line is metadata).
+
+        ``hold``: how the input moved between samples; default the metadata's ``"hold"``, else ``"foh"``."""
+        path = Path(path)
+        if not path.exists():
+            raise DataError(f"no such file: {path}")
+        lines = path.read_text().splitlines()
+        metadata = {}
+        if lines and lines[0].startswith("#"):
+            metadata = json.loads(lines[0].lstrip("#").strip() or "{}")
+            lines = lines[1:]
+        if not lines or not lines[0].strip():
+            raise DataError(f"{path} is empty; expected a header 't,u,y' followed by one row per sample")
+        header = [h.strip() for h in lines[0].split(",")]
+        missing = [c for c in _COLUMNS if c not in header]
+        if missing:
+            raise DataError(
+                f"{path}: missing column(s) {missing}; the header is {header}, expected it to contain 't,u,y'"
+            )
+        rows = [r for r in lines[1:] if r.strip()]
+        if not rows:
+            raise DataError(f"{path} has a header but no data rows")
+        try:
+            table = np.array([[float(v) for v in r.split(",")] for r in rows], dtype=np.float64)
+        except ValueError as err:
+            raise DataError(f"{path}: a value is not a number ({err}); every cell must parse as a float") from None
+        if table.ndim != 2 or table.shape[1] != len(header):
+            raise DataError(f"{path}: every row must have {len(header)} values like the header")
+        columns = {h: table[:, i] for i, h in enumerate(header)}
+        return cls(columns["t"], columns["u"], columns["y"], name or path.stem, metadata,
+                   hold or metadata.get("hold", "foh"))
+
+    def _written_metadata(self) -> dict:
+        """The metadata a file keeps: this record's, with its ``hold`` where it is not the default."""
+        return self.metadata if self.hold == "foh" else {**self.metadata, "hold": self.hold}
+
+    def to_csv(self, path: str | Path) -> Path:
+        """Write ``t,u,y`` (single-channel u and y), with the metadata as a first ``# {json}`` line."""
+        if self.u.shape[1] != 1 or self.y.shape[1] != 1:
+            raise DataError("CSV holds one input and one output channel; use to_npz for several")
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        table = torch.stack([self.t, self.u[:, 0], self.y[:, 0]], dim=1).numpy()
+        buffer = io.StringIO()
+        np.savetxt(buffer, table, delimiter=",", fmt="%.17g")
+        metadata = self._written_metadata()
+        head = f"# {json.dumps(metadata)}\n" if metadata else ""
+        path.write_text(f"{head}t,u,y\n{buffer.getvalue()}")
+        return path
+
+    @classmethod
+    def from_npz(cls, path: str | Path, name: str | None = None, hold: str | None = None) -> Experiment:
+        """Read arrays ``t``, ``u``, ``y`` (and optional JSON ``metadata``) from an NPZ file; ``hold`` as in
+        :meth:`from_csv`."""
+        path = Path(path)
+        if not path.exists():
+            raise DataError(f"no such file: {path}")
+        with np.load(path, allow_pickle=False) as archive:
+            missing = [c for c in _COLUMNS if c not in archive.files]
+            if missing:
+                raise DataError(f"{path}: missing array(s) {missing}; it holds {archive.files}, expected t, u, y")
+            metadata = json.loads(str(archive["metadata"])) if "metadata" in archive.files else {}
+            return cls(archive["t"], archive["u"], archive["y"], name or path.stem, metadata,
+                       hold or metadata.get("hold", "foh"))
+
+    def to_npz(self, path: str | Path) -> Path:
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path, t=self.t.numpy(), u=self.u.numpy(), y=self.y.numpy(),
+                 metadata=json.dumps(self._written_metadata()))
+        return path
+
+
+def _as_columns(values, column: str) -> torch.Tensor:
+    tensor = torch.as_tensor(values, dtype=torch.float64).detach()  # a record is data, never part of a graph
+    if tensor.dim() == 1:
+        return tensor[:, None]
+    if tensor.dim() != 2:
+        raise DataError(f"column {column!r} must be (time,) or (time, channel), got shape {tuple(tensor.shape)}")
+    return tensor

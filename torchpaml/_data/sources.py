@@ -1,0 +1,121 @@
+r"""Where a split's experiments come from: measured files, or a simulated "true system" driven by a signal.
+
+Every source is a small typed object that YAML can spell out (``class_path``/``init_args``) and whose
+:meth:`ExperimentSource.experiments` returns a list of :class:`~torchpaml._data.Experiment`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+import torch
+
+from torchpaml._data.experiment import Experiment
+from torchpaml._errors import DataError
+from torchpaml._physics.base import AbstractPhysics
+from torchpaml._signals import cosine, multisine, pseudorandom, pseudorandom_knots, sine, time_grid
+from torchpaml._simulate import simulate
+
+__all__ = ["ExperimentSource", "Files", "Simulated"]
+
+
+class ExperimentSource:
+    """Abstract: a named set of experiments."""
+
+    def experiments(self) -> list[Experiment]:
+        raise NotImplementedError(f"{type(self).__name__} must implement experiments()")
+
+
+class Files(ExperimentSource):
+    """Measured records: CSV files (header ``t,u,y``) or NPZ files (arrays ``t``, ``u``, ``y``).
+
+    Args:
+        paths: one or more files; the suffix (``.csv`` or ``.npz``) picks the reader.
+    """
+
+    def __init__(self, paths: list[str]):
+        if not paths:
+            raise DataError("Files needs at least one path; list the CSV or NPZ records of this split")
+        self.paths = [Path(p) for p in paths]
+
+    def experiments(self) -> list[Experiment]:
+        readers = {".csv": Experiment.from_csv, ".npz": Experiment.from_npz}
+        records = []
+        for path in self.paths:
+            if path.suffix not in readers:
+                raise DataError(f"{path}: unknown file type {path.suffix!r}; use a .csv (header t,u,y) or .npz file")
+            records.append(readers[path.suffix](path))
+        return records
+
+
+class Simulated(ExperimentSource):
+    r"""Synthetic measurements: ``system`` (the "true" physics) driven by a seeded signal, plus output noise.
+
+    Args:
+        system: the data-generating physics, e.g. the paper's pendulum.
+        signal: ``"sine"`` ($\alpha\sin\omega t$), ``"cosine"``, ``"pseudorandom"`` (the paper's: uniform
+            knots every ``knot_period`` s, linearly interpolated) or ``"multisine"`` (random phases,
+            ``frequencies`` in Hz).
+        amplitude: $\alpha$, the peak input.
+        seeds: one experiment per seed (the seed of the signal and of the noise).
+        duration: record length, s.
+        dt: sampling interval, s.
+        omega: sine/cosine frequency, rad/s.
+        noise: standard deviation of white output noise as a fraction of RMS(y) (0: noise-free).
+    """
+
+    def __init__(
+        self,
+        system: AbstractPhysics,
+        signal: Literal["sine", "cosine", "pseudorandom", "multisine"] = "pseudorandom",
+        amplitude: float = 1.0,
+        seeds: list[int] | None = None,
+        duration: float = 80.0,
+        dt: float = 0.01,
+        omega: float = 1.0,
+        knot_period: float = 0.8,
+        frequencies: list[float] | None = None,
+        noise: float = 0.0,
+        rtol: float = 1e-7,
+        atol: float = 1e-9,
+    ):
+        if signal not in ("sine", "cosine", "pseudorandom", "multisine"):
+            raise ValueError(f"unknown signal {signal!r}; use 'sine', 'cosine', 'pseudorandom' or 'multisine'")
+        if not amplitude > 0 or not noise >= 0:
+            raise ValueError(f"need amplitude > 0 and noise >= 0, got amplitude={amplitude}, noise={noise}")
+        self.system, self.signal, self.amplitude = system, signal, float(amplitude)
+        self.seeds = [0] if seeds is None else list(seeds)
+        self.duration, self.dt, self.omega, self.knot_period = duration, dt, omega, knot_period
+        self.frequencies = [0.1, 0.2, 0.3, 0.5, 0.7] if frequencies is None else list(frequencies)
+        self.noise, self.rtol, self.atol = float(noise), rtol, atol
+
+    def inputs(self, t: torch.Tensor) -> torch.Tensor:
+        """The input of every seed, (seeds, time, 1)."""
+        rows = []
+        for seed in self.seeds:
+            if self.signal == "sine":
+                rows.append(sine(t, self.amplitude, self.omega))
+            elif self.signal == "cosine":
+                rows.append(cosine(t, self.amplitude, self.omega))
+            elif self.signal == "pseudorandom":
+                rows.append(pseudorandom(t, self.amplitude, self.knot_period, seed=seed))
+            else:
+                rows.append(multisine(t, self.amplitude, self.frequencies, seed=seed))
+        return torch.cat(rows)
+
+    def experiments(self) -> list[Experiment]:
+        t = time_grid(self.duration, self.dt)
+        u = self.inputs(t)
+        knots = pseudorandom_knots(t, self.knot_period) if self.signal == "pseudorandom" else None
+        with torch.no_grad():
+            y = simulate(self.system, t, u, rtol=self.rtol, atol=self.atol, knots=knots)
+        records = []
+        for i, seed in enumerate(self.seeds):
+            generator = torch.Generator().manual_seed(10_000 + seed)
+            scale = self.noise * float(y[i].pow(2).mean().sqrt())
+            noisy = y[i] + scale * torch.randn(y[i].shape, generator=generator, dtype=torch.float64)
+            name = f"{self.signal}-amplitude{self.amplitude:g}-seed{seed}"
+            metadata = {"signal": self.signal, "amplitude": self.amplitude, "seed": seed, "noise": self.noise}
+            records.append(Experiment(t, u[i], noisy, name, metadata))
+        return records

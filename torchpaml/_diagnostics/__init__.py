@@ -1,0 +1,47 @@
+"""Diagnostics: how the physics compares with the measurements, where it fails, and which effect is missing."""
+
+from torchpaml._diagnostics.adequacy import Adequacy, assess_adequacy
+from torchpaml._diagnostics.compare import Comparison, compare
+from torchpaml._diagnostics.discovery import Discovery, discover_missing_force
+from torchpaml._diagnostics.diagnosis import Diagnosis, HybridScore, diagnose
+from torchpaml._diagnostics.harmonics import HarmonicFingerprint, harmonic_fingerprint
+from torchpaml._diagnostics.ladder import Ladder, model_ladder
+from torchpaml._diagnostics.ranking import (
+    EffectEvidence,
+    ModelScore,
+    Ranking,
+    rank_missing_effects,
+)
+from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
+from torchpaml._diagnostics.validity import (
+    AmplitudeBins,
+    ValidityMap,
+    error_by_amplitude,
+    validity_map,
+)
+
+__all__ = [
+    "Adequacy",
+    "AmplitudeBins",
+    "Comparison",
+    "Diagnosis",
+    "Discovery",
+    "EffectEvidence",
+    "HarmonicFingerprint",
+    "HybridScore",
+    "Ladder",
+    "ModelScore",
+    "Ranking",
+    "ResidualAnalysis",
+    "ValidityMap",
+    "assess_adequacy",
+    "compare",
+    "diagnose",
+    "discover_missing_force",
+    "error_by_amplitude",
+    "harmonic_fingerprint",
+    "model_ladder",
+    "rank_missing_effects",
+    "residual_analysis",
+    "validity_map",
+]

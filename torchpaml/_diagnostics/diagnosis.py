@@ -1,0 +1,198 @@
+r"""The whole diagnosis: compare, where it fails, which effect is missing, add it, the residual on top.
+
+:func:`diagnose` runs, on training and validation records:
+
+1. the **model ladder** (:func:`~torchpaml._diagnostics.model_ladder`): the physics fitted, the
+   candidates ranked (:func:`~torchpaml._diagnostics.rank_missing_effects`), the best added while it
+   beats the current model's criterion by more than the threshold;
+2. **where the fitted physics fails** on the validation records: residual whiteness and input
+   cross-correlation (:func:`~torchpaml._diagnostics.residual_analysis`), and the mismatch binned by
+   |u| and by |y| (:func:`~torchpaml._diagnostics.error_by_amplitude`);
+3. the **Chebyshev-Hammerstein residual** fitted on top of the first and of the last rung, with the
+   inadequacy alarm (:func:`~torchpaml._diagnostics.assess_adequacy`): on wrong physics it cannot
+   close the gap and says so; on physics whose training residual is white (at most
+   :data:`WHITE_SHARE` of the correlation lags outside the 99 % bounds) it says that there is
+   nothing left to add;
+4. with ``discover=True``, the **discovery** of a force outside the library
+   (:func:`~torchpaml._diagnostics.discover_missing_force`: a neural force in the ODE, then its closed
+   form, ranked against the library's best effect). It is asked for, not automatic: it trains a
+   network through the simulator: seconds on a record of a thousand samples, tens of minutes on 5 x 10^4.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import torch
+
+from torchpaml._data import Experiment
+from torchpaml._diagnostics.adequacy import Adequacy, assess_adequacy
+from torchpaml._diagnostics.discovery import Discovery, discover_missing_force, why_discovery_cannot_run
+from torchpaml._diagnostics.ladder import Ladder, model_ladder
+from torchpaml._diagnostics.ranking import ModelScore, Ranking
+from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
+from torchpaml._diagnostics.validity import AmplitudeBins, error_by_amplitude
+from torchpaml._errors import DataError
+from torchpaml._simulate.sensitivity import simulate_record
+from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein
+from torchpaml._metrics import mismatch
+from torchpaml._parameters import describe_parameters
+from torchpaml._physics.effects import AbstractEffect
+from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
+
+__all__ = ["Diagnosis", "HybridScore", "diagnose"]
+
+#: A residual counts as white when at most this share of its correlation lags leave the 99 % bounds
+#: (1 % would by chance; 5 % leaves room for a few, and a structured residual leaves most of them).
+WHITE_SHARE = 0.05
+
+
+@dataclass
+class HybridScore:
+    """A physics model with the Chebyshev residual on top: mismatches (fractions) and the adequacy verdict."""
+
+    model: str
+    physics_train: float
+    hybrid_train: float
+    physics_validation: float
+    hybrid_validation: float
+    adequacy: Adequacy
+
+
+@dataclass
+class Diagnosis:
+    """Everything :func:`diagnose` found (module docstring).
+
+    :func:`~torchpaml.diagnosis_to_dict` turns it into the ``diagnosis.json`` content,
+    :func:`~torchpaml.diagnosis_figures` into figures, and :func:`~torchpaml.write_report` writes both.
+    """
+
+    ladder: Ladder
+    residuals: ResidualAnalysis
+    by_input: AmplitudeBins
+    by_output: AmplitudeBins
+    hybrids: list[HybridScore]
+    validation: list[Experiment] = field(repr=False)
+    discovery: Discovery | None = None
+
+    @property
+    def baseline(self) -> ModelScore:
+        return self.ladder.steps[0]
+
+    @property
+    def ranking(self) -> Ranking:
+        return self.ladder.rankings[0]
+
+    @property
+    def compared_models(self) -> list[ModelScore]:
+        """The fitted physics and, where the ladder added effects, the final model."""
+        return _distinct(self.baseline, self.ladder.final)
+
+    @property
+    def verdict(self) -> str:
+        """One paragraph: what is missing, how the error fell, and what the residual on top says."""
+        base, final = self.baseline, self.ladder.final
+        if self.ladder.added:
+            found = (f"missing effect(s) found: {', '.join(self.ladder.added)}. Validation mismatch "
+                     f"{100 * base.nrmse_validation:.2f} % -> {100 * final.nrmse_validation:.2f} %. "
+                     f"Final model: {final.equation}.")
+        else:
+            best = next((e for e in self.ranking.entries if e.improvement is not None), None)
+            detail = "" if best is None else (
+                f" (the best, {best.effect}, improves {self.ranking.criterion.upper()} by {best.improvement:.1f} and "
+                f"the validation mismatch by {100 * (1 - best.refit.nrmse_validation / base.nrmse_validation):.1f} %; "
+                f"needed: {self.ranking.threshold:g} and {100 * self.ranking.min_share:g} %"
+                + "".join(f"; unphysical: {note}" for note in best.unphysical) + ")")
+            found = (f"no missing effect found among {len(self.ranking.entries)} candidates{detail}. Validation "
+                     f"mismatch {100 * base.nrmse_validation:.2f} %.")
+        verdict = f"{found} Chebyshev residual on the final model: {self.hybrids[-1].adequacy.message.rstrip('.')}."
+        if self.discovery is not None:
+            judged = "recommended" if self.discovery.recommended else "not recommended"
+            verdict += f" Discovered force: {self.discovery.expression} ({judged}: {self.discovery.reason})."
+        elif self.hybrids[-1].adequacy.inadequate and why_discovery_cannot_run(self.baseline.model) is None:
+            verdict += " To learn the form of what is missing, run the discovery (--discover, or discover=True)."
+        return verdict
+
+
+def _distinct(first: ModelScore, last: ModelScore) -> list[ModelScore]:
+    return [first] if last is first else [first, last]
+
+
+def _stack(records: list[Experiment], what: str) -> tuple[torch.Tensor, torch.Tensor]:
+    lengths = {len(r.t) for r in records}
+    if len(lengths) > 1:
+        raise DataError(f"the residual stage stacks the {what} records, which needs equal lengths; got {sorted(lengths)}. "
+                        "Cut them to one length")
+    return torch.stack([r.u for r in records]), torch.stack([r.y for r in records])
+
+
+def _hybrid(step: ModelScore, train: list[Experiment], validation: list[Experiment], alpha: float) -> HybridScore:
+    """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid."""
+    residual = ChebyshevHammerstein(alpha)
+    t = train[0].t - train[0].t[0]
+    u, y = _stack(train, "training")
+    y_physics = torch.cat([simulate_record(step.model, r, x0) for r, x0 in zip(train, step.train_states, strict=True)])
+    fit_chebyshev_hammerstein(residual, t, u, y - y_physics)
+    with torch.no_grad():
+        hybrid_train = mismatch(y, y_physics + residual(t, u))
+        v_u, v_y = _stack(validation, "validation")
+        v_t = validation[0].t - validation[0].t[0]
+        v_physics = torch.stack(step.validation_outputs)
+        hybrid_validation = mismatch(v_y, v_physics + residual(v_t, v_u))
+    whiteness = residual_analysis(u[0, :, 0], (y - y_physics)[0, :, 0])
+    white = (len(whiteness.autocorrelation_outside) <= WHITE_SHARE * len(whiteness.lags)
+             and len(whiteness.cross_correlation_outside) <= WHITE_SHARE * len(whiteness.cross_lags))
+    adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
+                               residual_white=white)
+    return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy)
+
+
+def diagnose(
+    physics,
+    candidates: Sequence[AbstractEffect],
+    train: Experiment | Sequence[Experiment],
+    validation: Experiment | Sequence[Experiment],
+    *,
+    alpha: float | None = None,
+    discover: bool = False,
+    **ranking_options,
+) -> Diagnosis:
+    """Run the whole diagnosis (module docstring).
+
+    Args:
+        physics: the physics to diagnose (not modified); its learnable parameters are fitted.
+        candidates: effects at zero strength.
+        train: the training records.
+        validation: the validation records.
+        alpha: Chebyshev domain of the residual; default 1.05 max |u| over all records.
+        discover: also discover a force outside the library (module docstring, step 4).
+        ranking_options: forwarded to :func:`~torchpaml._diagnostics.rank_missing_effects`.
+    """
+    train = [train] if isinstance(train, Experiment) else list(train)
+    validation = [validation] if isinstance(validation, Experiment) else list(validation)
+    if discover and (reason := why_discovery_cannot_run(physics)) is not None:  # checked before any fit
+        raise ValueError(reason)
+    most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
+                                                                 for c in candidates),
+                                                default=0)
+    for record in train + validation:  # checked before any fit
+        if len(record.t) <= 2 * most:
+            raise DataError(f"experiment {record.name!r} has {len(record.t)} samples, too few to fit up to {most} "
+                            f"parameters (the physics' and a candidate's) and judge the fit; give records of more "
+                            f"than {2 * most} samples, or fix parameters")
+        record.require_uniform("diagnose (its Chebyshev-Hammerstein residual, an exactly discretised filter)")
+    ladder = model_ladder(physics, candidates, train, validation, **ranking_options)
+    base = ladder.steps[0]
+    record = validation[0]
+    y_model = base.validation_outputs[0]
+    residuals = residual_analysis(record.u[:, 0], (record.y - y_model)[:, 0])
+    by_input = error_by_amplitude(record.u, record.y, y_model)
+    by_output = error_by_amplitude(record.y, record.y, y_model)
+    alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
+    hybrids = [_hybrid(step, train, validation, alpha) for step in _distinct(base, ladder.final)]
+    discovery = None
+    if discover:
+        shared = {k: v for k, v in ranking_options.items() if k in ("criterion", "threshold", "min_share", "initial_state")}
+        discovery = discover_missing_force(ladder.rankings[0], train, validation, **shared)
+    return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation, discovery)

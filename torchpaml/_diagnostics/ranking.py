@@ -1,0 +1,489 @@
+r"""Which effect is missing: rank candidate effects by a first-order score, then by refitted validation error.
+
+1. **Baseline.** The physics' learnable parameters are fitted to the training records
+   (:func:`~torchpaml._fit.fit_physics`), leaving the residual
+   $r = (y - \hat y)/\|y\|$ and the sensitivities $J = \partial r/\partial\rho$ of the physics' own
+   parameters.
+2. **First-order score** (the tangent-space idea of Kuang & Lin). Each candidate $c$ is added at
+   strength $k$; at $k = 0$ the model is unchanged. Its output direction is the secant
+   $d_c = [\hat y(\delta) - \hat y(0)]/\|y\|$ for a small probe strength $\delta$. What the physics'
+   own parameters already explain is removed, $\tilde d_c = (I - J J^+)\, d_c$, and the score is the
+   share of the residual's energy that a step along $\tilde d_c$ removes:
+
+   $$ s_c = \frac{(\tilde d_c^\top r)^2}{\|\tilde d_c\|^2\,\|r\|^2} \in [0, 1]. $$
+
+   Some effects enter at second order: $\tanh(s u)/s = u - s^2u^3/3 + \dots$ is even in $s$.
+   The order $q$ is read off $\|\hat y(2\delta) - \hat y(0)\| / \|\hat y(\delta) - \hat y(0)\| \approx 2^q$;
+   for $q = 2$ only a positive coefficient $\beta = \tilde d_c^\top r / \|\tilde d_c\|^2$ is reachable
+   ($\beta = (k/\delta)^2$), so $s_c = 0$ when $\beta \le 0$. The first-order strength
+   $k_1 = \delta\,\beta^{1/q}$ starts the refit. The probes' outputs come from the tangent-linear
+   model when the base is linear (:class:`TangentLinear`, no nonlinear simulation), else from RK4
+   simulations warm-started from the base's trajectory (:class:`Secant`).
+3. **Refit.** The ``shortlist`` best-scored candidates are refitted with the physics
+   (all parameters learnable as in the physics, plus the effect's) on the training records. Each
+   refit starts from the first-order Gauss-Newton step: the strength $k_1$, and the physics' own
+   unknowns moved by $-J^+(r - \beta d_c)$. It stops when a step changes the training criterion by
+   less than :data:`REFIT_CRITERION_STEP` (0.1, a hundredth of the threshold). Measured on the
+   benchmark's case (``benchmarks/bench_ranking.py``): 13 simulations for the three refits, where
+   a start from $k_1$ alone and the fit's own tolerance took 21, with the same table. When
+   the best of them has shape parameters (:attr:`~torchpaml._physics.AbstractEffect.shape`: the
+   width of Coulomb friction's smoothed sign), it is refitted once more with them freed, and that
+   refit is kept when it lowers the criterion by more than ``threshold``: the data asks for another shape.
+   A refit whose optimum fails the step check (:mod:`torchpaml._fit.resolution`: its output depends on
+   the RK4 step beyond what substeps resolve) has no result; its evidence says why (``failure``).
+4. **Rank** by the information criterion on the validation records,
+   $\mathrm{BIC} = n \ln(\mathrm{SSE}/n) + k \ln n$ (or $\mathrm{AIC} = n\ln(\mathrm{SSE}/n) + 2k$), $k$ the
+   number of fitted parameters. The best candidate is *recommended* when
+   - it lowers the criterion below the baseline's by more than ``threshold`` (10: very strong
+     evidence on the Kass-Raftery scale);
+   - it lowers the validation mismatch by at least the share ``min_share`` (5 %): on a long record
+     whose residual is not white, a criterion gain alone accepts rungs that change nothing;
+   - its refitted parameters lie in their declared physical ranges (``physical`` of
+     :class:`~torchpaml._parameters.PhysicalParameter`: a Coulomb level or a drag coefficient >= 0, a
+     share of sin x in [0, 1]). An unphysical refit is flagged in its evidence and passed over;
+   - its training mismatch is not above the baseline's: the extended model contains the baseline
+     (at strength 0), so a worse training fit is a failed optimisation, not evidence.
+   Candidates outside the shortlist follow, by score, without a refit.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import torch
+
+from torchpaml._data import Experiment
+from torchpaml._errors import DataError, ResolutionError, SimulationError
+from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
+from torchpaml._metrics import mismatch
+from torchpaml._parameters import unphysical_values
+from torchpaml._simulate.lti import simulate_lti
+from torchpaml._simulate.sensitivity import raw_parameters, simulate_record
+from torchpaml._simulate.shooting import solve_rk4
+from torchpaml._simulate.simulator import checked_output, uniform_step
+from torchpaml._physics.effects import AbstractEffect
+
+__all__ = ["EffectEvidence", "ModelScore", "REFIT_CRITERION_STEP", "Ranking", "rank_missing_effects", "refit_effect",
+           "score_model"]
+
+#: A refit stops when a step changes the training criterion $n\ln(\mathrm{SSE}/n)$ by less than this (its ``ftol``
+#: is this over n): a hundredth of the threshold that decides. The effect that the ladder adds is fitted to the
+#: last digits as the next rung's baseline.
+REFIT_CRITERION_STEP = 0.1
+
+
+@dataclass
+class ModelScore:
+    """A fitted model's errors: mismatch (fraction) on training and validation, and the criterion on validation.
+
+    It carries what scoring computed: the initial states of the training and validation records, each
+    (n_state,), and the model's output on each validation record, (time, n_y), so that what is drawn or
+    analysed later is the output that was scored.
+    """
+
+    name: str
+    equation: str
+    parameters: dict[str, float]
+    nrmse_train: float
+    nrmse_validation: float
+    criterion: float
+    model: torch.nn.Module = field(repr=False)
+    uncertainty: dict[str, float] = field(default_factory=dict)
+    warning: str | None = None
+    train_states: list[torch.Tensor] = field(default_factory=list, repr=False)
+    validation_states: list[torch.Tensor] = field(default_factory=list, repr=False)
+    validation_outputs: list[torch.Tensor] = field(default_factory=list, repr=False)
+
+
+@dataclass
+class EffectEvidence:
+    """One candidate's evidence: its first-order score and, if refitted, its refitted model's errors.
+
+    ``improvement`` is the baseline's criterion minus the candidate's (positive: better). ``failure``: why a
+    shortlisted refit has no result (its optimum fails the step check, :mod:`torchpaml._fit.resolution`).
+    """
+
+    effect: str
+    equation: str
+    score: float
+    order: int
+    first_order_strength: float
+    refit: ModelScore | None = None
+    improvement: float | None = None
+    unphysical: list[str] = field(default_factory=list)
+    failure: str | None = None
+
+
+@dataclass
+class Ranking:
+    """The baseline and the candidates, best first (module docstring)."""
+
+    baseline: ModelScore
+    entries: list[EffectEvidence]
+    criterion: str
+    threshold: float
+    skipped: dict[str, str] = field(default_factory=dict)
+    min_share: float = 0.05
+
+    @property
+    def recommended(self) -> EffectEvidence | None:
+        """The best physical candidate if it passes ``threshold`` and ``min_share`` (module docstring), else ``None``."""
+        best = next((e for e in self.entries if e.refit is not None and not e.unphysical
+                     and e.refit.nrmse_train <= self.baseline.nrmse_train * (1 + 1e-6)), None)
+        if best is None or best.improvement is None or best.improvement <= self.threshold:
+            return None
+        share = 1 - best.refit.nrmse_validation / self.baseline.nrmse_validation
+        return best if share >= self.min_share else None
+
+
+def _records(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]:
+    return [experiments] if isinstance(experiments, Experiment) else list(experiments)
+
+
+def score_model(
+    physics,
+    fit: PhysicsEstimate,
+    validation: Sequence[Experiment],
+    criterion: Literal["bic", "aic"] = "bic",
+    initial_state: Literal["rest", "estimate"] = "rest",
+) -> ModelScore:
+    """The fitted ``physics``' mismatch on training (from ``fit``) and validation, and its criterion on validation.
+
+    With ``initial_state="estimate"`` each validation record starts from the state that best explains
+    it (:func:`~torchpaml._fit.estimate_initial_state`, the parameters fixed), as MATLAB's ``compare`` does.
+    """
+    sse, n, norm = 0.0, 0, 0.0
+    starts = [estimate_initial_state(physics, r) if initial_state == "estimate" else None for r in validation]
+    outputs = []
+    for record, x0 in zip(validation, starts, strict=True):
+        y_model = simulate_record(physics, record, x0)[0].detach()
+        outputs.append(y_model)
+        sse += float(torch.sum((record.y - y_model) ** 2))
+        norm += float(torch.sum(record.y**2))
+        n += record.y.numel()
+    k = len(fit.parameters)
+    penalty = k * torch.log(torch.tensor(float(n))).item() if criterion == "bic" else 2.0 * k
+    value = n * torch.log(torch.tensor(sse / n)).item() + penalty
+    equation = physics.equation() if hasattr(physics, "equation") else physics.display_name
+    return ModelScore(physics.display_name, equation, physics.physical_parameters(), fit.mismatch,
+                      (sse / norm) ** 0.5, value, physics, dict(fit.uncertainty.std), fit.uncertainty.warning,
+                      fit.initial_states, [physics.initial_state(1)[0] if x0 is None else x0 for x0 in starts],
+                      outputs)
+
+
+def _assigned(extended, name: str, value: float) -> bool:
+    """Set the strength ``name`` to ``value``; ``False`` (and unchanged) where its constraint forbids it."""
+    try:
+        extended.assign(**{name: value})
+    except ValueError:
+        return False
+    return True
+
+
+class TangentLinear:
+    r"""First-order outputs of ``base + effect`` around a *linear* base, by the exact LTI path.
+
+    With $\dot x = A x + B u + \Delta f_k(x, u)$ (the effect's change of the derivative: forces, rates
+    and input maps) and $y = h_k(x, u)$, the output's change to first order in the strength $k$ is the
+    base's own linear dynamics driven by $\Delta f_k$ along the baseline trajectory $x^0$, plus
+    $h_k(x^0) - h_0(x^0)$:
+
+    $$ \delta y = C\,(sI - A)^{-1}\, \Delta f_k(x^0, u) + h_k(x^0, u) - h_0(x^0, u). $$
+
+    The probes of one effect are one exact simulation (a filter) per record, with a row per strength.
+    """
+
+    def __init__(self, base, train: list[Experiment], initial_states: list[torch.Tensor]):
+        A, B, C, _ = (m.detach() for m in base.state_space())
+        n = A.shape[0]
+        self.base, self.A, self.C = base, A, C
+        self.records = []
+        with torch.no_grad():
+            for record, x0 in zip(train, initial_states, strict=True):
+                h = uniform_step(record.t)
+                u = record.u[None]
+                states = simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, B.shape[1], dtype=A.dtype), h, u,
+                                      x0.reshape(1, n), record.hold)
+                self.records.append((record.t - record.t[0], u, states, h, record.hold))
+
+    @classmethod
+    def of(cls, base, train: list[Experiment], initial_states: list[torch.Tensor]) -> TangentLinear | None:
+        """The tangent-linear model when ``base`` is linear physics on uniform records, else ``None``."""
+        if base.state_space() is None:
+            return None
+        try:
+            return cls(base, train, initial_states)
+        except DataError:
+            return None
+
+    def outputs(self, extended) -> torch.Tensor:
+        """The first-order outputs of ``extended`` (the base plus effects) on the training records, concatenated."""
+        return self._responses(extended, [{}])[0]
+
+    def probes(self, extended, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
+        """The first-order outputs with the strength ``name`` at each of ``values`` (``None`` where its constraint
+        forbids the value), one filter run per record for all of them."""
+        allowed = [value for value in values if _assigned(extended, name, value)]
+        responses = iter(self._responses(extended, [{name: value} for value in allowed]))
+        return [next(responses) if value in allowed else None for value in values]
+
+    def _responses(self, extended, settings: list[dict[str, float]]) -> list[torch.Tensor]:
+        """The first-order outputs of ``extended`` with each of ``settings`` assigned, one filter row each."""
+        n = self.A.shape[0]
+        parts = []
+        with torch.no_grad():
+            for t, u, states, h, hold in self.records:
+                x, w = states[0], u[0]
+                extras, maps = [], []
+                for setting in settings:
+                    extended.assign(**setting)
+                    extras.append(extended.derivative(t, x, w) - self.base.derivative(t, x, w))
+                    maps.append(extended.output(states, u)[0])
+                response = simulate_lti(self.A, torch.eye(n, dtype=self.A.dtype), self.C,
+                                        torch.zeros(self.C.shape[0], n, dtype=self.A.dtype), h, torch.stack(extras),
+                                        hold=hold)
+                parts.append((response + torch.stack(maps)).flatten(1))
+        return list(torch.cat(parts, dim=1))
+
+
+class Secant:
+    """Outputs of ``base + effect`` near the base, by RK4 simulations warm-started from the base's trajectory.
+
+    For a nonlinear base (or non-uniform records), where :class:`TangentLinear` does not apply. A probe
+    at a small strength stays close to the base, so Newton, started from the base's converged states,
+    needs a sweep or two instead of the several of a cold start.
+    """
+
+    def __init__(self, base, train: list[Experiment], initial_states: list[torch.Tensor]):
+        self.records = []
+        with torch.no_grad():
+            for record, x0 in zip(train, initial_states, strict=True):
+                t, u, start, hold = record.t - record.t[0], record.u[None], x0.reshape(1, -1), record.hold
+                guess = solve_rk4(base, t, u, start, sensitivities=False, hold=hold).trajectory
+                self.records.append((t, u, start, hold, guess))
+
+    def outputs(self, extended) -> torch.Tensor:
+        """The outputs of ``extended`` on the training records, concatenated."""
+        parts = []
+        with torch.no_grad():
+            for t, u, start, hold, guess in self.records:
+                states = solve_rk4(extended, t, u, start, sensitivities=False, guess=guess, hold=hold).trajectory
+                parts.append(checked_output(extended.output(states, u), t).flatten())
+        return torch.cat(parts)
+
+    def probes(self, extended, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
+        """The outputs with the strength ``name`` at each of ``values``; ``None`` where its constraint forbids
+        the value."""
+        return [self.outputs(extended) if _assigned(extended, name, value) else None for value in values]
+
+
+def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experiment], probe: float,
+                 reference: torch.Tensor, engine: TangentLinear | Secant) -> tuple[float, int, float, torch.Tensor]:
+    r"""(score, order q, first-order strength, move) of the effect whose strength parameter is ``name``
+    (module docstring).
+
+    The strength is probed at 0, δ, 2δ and -δ. An effect that moves the output the same way at ±δ
+    (second order, or an absolute value such as the dead zone's |d|) can only add a positive multiple
+    of its direction, so a negative coefficient scores 0.
+
+    ``move`` (unknowns,) is the rest of the Gauss-Newton step from the baseline, for the physics' own
+    unknowns (``fit.jacobian``'s columns): with the effect's output change $\beta d_c$ at the first-order
+    strength, $\Delta\rho = -J^+(r - \beta d_c)$. The refit starts from both (:func:`refit_effect`).
+    """
+    scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
+    outputs = [None if out is None else out / scale
+               for out in engine.probes(extended, name, (0.0, probe, 2 * probe, -probe))]
+    if outputs[0] is None:
+        raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0; "
+                         "give it a constraint that allows 0 (e.g. Real())")
+    extended.assign(**{name: 0.0})
+    outputs = [out if out is not None else outputs[0] for out in outputs]
+    off = float(torch.linalg.vector_norm(outputs[0] - reference) / torch.linalg.vector_norm(reference))
+    if off > 1e-3:
+        raise ValueError(
+            f"effect {name.partition('.')[0]!r} changes the model at zero strength (by {100 * off:.2g} % of the "
+            f"output); its strength parameter {name!r} must switch the effect off at 0. Rewrite the effect so that "
+            "its first declared parameter scales it"
+        )
+    d1, d2, d_minus = (outputs[i] - outputs[0] for i in (1, 2, 3))
+    size = float(torch.linalg.vector_norm(d1))
+    J, r = fit.jacobian, fit.residual
+    still = torch.zeros(J.shape[1], dtype=J.dtype)
+    if size == 0.0:
+        return 0.0, 1, 0.0, still  # the effect does not act on this record
+    order = 2 if float(torch.linalg.vector_norm(d2)) / size > 2**1.5 else 1
+    one_sided = float(torch.linalg.vector_norm(d_minus - d1)) < 0.5 * size
+    projected = d1 - J @ torch.linalg.lstsq(J, d1[:, None]).solution[:, 0]
+    energy = float(projected @ projected)
+    if energy <= 1e-20 * size**2:
+        return 0.0, order, 0.0, still  # the physics' own parameters already make this move
+    beta = float(projected @ r) / energy
+    if one_sided and beta <= 0:
+        return 0.0, order, probe, still
+    score = float(projected @ r) ** 2 / (energy * float(r @ r))
+    move = -torch.linalg.lstsq(J, (r - beta * d1)[:, None]).solution[:, 0]
+    return score, order, probe * (beta if order == 1 else beta ** (1 / order)), move
+
+
+def refit_effect(extended, name: str, start: float, train: list[Experiment], max_nfev: int, initial_state: str,
+                 baseline: PhysicsEstimate | None = None, move: torch.Tensor | None = None, ftol: float = 1e-10
+                 ) -> PhysicsEstimate:
+    """Fit ``extended`` from the first-order start (:func:`_first_order`): the strength ``name`` at ``start`` and,
+    given the ``baseline`` fit, its unknowns (raw parameters, then estimated initial states) moved by ``move``.
+
+    The move is taken only where the simulation at it fits the training records better than the
+    baseline (far from linear, as with an outflow that becomes a square root, the step can overshoot
+    or blow up). Otherwise the unknowns stay, and the strength is halved while it breaks its constraint
+    or blows up the simulation, down to 0. ``ftol`` goes to :func:`~torchpaml._fit.fit_physics`.
+    """
+    warm = [{} for _ in train]  # the check's simulations start the fit's first Newton solves
+    fit = functools.partial(fit_physics, extended, train, max_nfev=max_nfev, initial_state=initial_state, ftol=ftol)
+    if baseline is not None and move is not None:
+        own = list(baseline.parameters)
+        raw = list(raw_parameters(extended, own).values())
+        origin = [tensor.detach().clone() for tensor in raw]
+        states = baseline.initial_states if initial_state == "estimate" else None
+        moved = None if states is None else [x + d for x, d in zip(states, move[len(own):].split(
+            [x.numel() for x in states]), strict=True)]
+        with torch.no_grad():
+            for tensor, delta in zip(raw, move, strict=False):  # the move's tail is the initial states'
+                tensor.add_(delta)
+        if _assigned(extended, name, start) and _training_mismatch(extended, train, moved, warm) < baseline.mismatch:
+            return fit(start_states=moved, warm=warm)
+        with torch.no_grad():
+            for tensor, value in zip(raw, origin, strict=True):
+                tensor.copy_(value)
+    states = None if baseline is None or initial_state != "estimate" else baseline.initial_states
+    for strength in [start * 0.5**i for i in range(20)] + [0.0]:
+        if not _assigned(extended, name, strength):  # beyond the parameter's constraint
+            continue
+        try:
+            return fit(start_states=states)
+        except ResolutionError:
+            raise  # the fit's optimum, not its start, is unresolved
+        except SimulationError:
+            if strength == 0.0:
+                raise
+    raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0")
+
+
+def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None, warm: list[dict]) -> float:
+    r"""The :func:`~torchpaml._metrics.mismatch` over the training records from ``states`` (or rest); inf if the
+    simulation blows up. Each record's RK4 solution is left in its dict of ``warm``."""
+    try:
+        outputs = [simulate_record(physics, r, x0, warm=w).flatten()
+                   for r, x0, w in zip(train, states or [None] * len(train), warm, strict=True)]
+    except SimulationError:
+        return math.inf
+    return mismatch(torch.cat([r.y.flatten() for r in train]), torch.cat(outputs))
+
+
+def _free_shape(score: ModelScore, effect: str, train: list[Experiment], validation: list[Experiment], criterion: str,
+                threshold: float, max_nfev: int, initial_state: str, ftol: float) -> ModelScore:
+    """``score``'s model refitted with the effect's shape parameters freed, if that beats it by ``threshold``."""
+    shape = score.model.effects[effect].shape
+    if not shape:
+        return score
+    freed = copy.deepcopy(score.model).set_learnable(*(f"{effect}.{name}" for name in shape))
+    states = score.train_states if initial_state == "estimate" else None
+    try:
+        estimate = fit_physics(freed, train, max_nfev=max_nfev, initial_state=initial_state, start_states=states,
+                               ftol=ftol)
+    except SimulationError:
+        return score
+    candidate = score_model(freed, estimate, validation, criterion, initial_state)
+    return candidate if score.criterion - candidate.criterion > threshold else score
+
+
+def rank_missing_effects(
+    physics,
+    candidates: Sequence[AbstractEffect],
+    train: Experiment | Sequence[Experiment],
+    validation: Experiment | Sequence[Experiment],
+    *,
+    shortlist: int = 2,
+    criterion: Literal["bic", "aic"] = "bic",
+    threshold: float = 10.0,
+    min_share: float = 0.05,
+    initial_state: Literal["rest", "estimate"] = "rest",
+    start_states: Sequence[torch.Tensor] | None = None,
+    probe: float = 1e-4,
+    max_nfev: int = 40,
+) -> Ranking:
+    """Rank ``candidates`` as the effect missing from ``physics`` (module docstring).
+
+    Args:
+        physics: the physics to diagnose (not modified: a copy is fitted). Its learnable parameters
+            are fitted; ``physics + effect`` must work for every candidate.
+        candidates: effects at zero strength, e.g. :func:`~torchpaml._physics.default_effects`; none: the
+            fitted baseline alone.
+        train: the records to fit on.
+        validation: the records to rank on.
+        shortlist: how many of the best-scored candidates are refitted (``len(candidates)``: all).
+        criterion: ``"bic"`` or ``"aic"``, on the validation records.
+        threshold: criterion improvement over the baseline needed to recommend an effect.
+        min_share: relative fall of the validation mismatch needed to recommend an effect.
+        initial_state: ``"rest"``, or ``"estimate"``: every fit estimates each training record's initial
+            state (:func:`~torchpaml._fit.fit_physics`), and each validation record starts from its best state.
+        start_states: with ``"estimate"``, the baseline fit's starting guesses of the training records' initial
+            states (default rest).
+        probe: strength $\\delta$ of the first-order secant.
+        max_nfev: iteration limit of each refit.
+    """
+    train, validation = _records(train), _records(validation)
+    names = [c.name for c in candidates]
+    if len(set(names)) != len(names):
+        raise ValueError(f"candidate effects must have distinct names, got {names}")
+    present = set(getattr(physics, "effects", {}))
+    if present & set(names):
+        raise ValueError(f"candidate(s) {sorted(present & set(names))} are already in {physics.display_name}; "
+                         "drop them from the candidates")
+    base_model = getattr(physics, "base", physics)
+    skipped = {c.name: reason for c in candidates if (reason := c.applies_to(base_model)) is not None}
+    candidates = [c for c in candidates if c.name not in skipped]
+    if skipped and not candidates:  # checked before any fit
+        raise ValueError(f"none of the candidate effects applies to {physics.display_name}: "
+                         + "; ".join(f"{name}: {reason}" for name, reason in skipped.items())
+                         + ". Give candidates written for this physics (`candidates:` in a --config file)")
+    base = copy.deepcopy(physics)
+    fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states)
+    baseline = score_model(base, fit, validation, criterion, initial_state)
+    if not candidates:
+        return Ranking(baseline, [], criterion, threshold, skipped, min_share)
+    scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
+    engine = TangentLinear.of(base, train, fit.initial_states) or Secant(base, train, fit.initial_states)
+    reference = engine.outputs(base) / scale  # the base's own output, from the trajectory the engine already holds
+    entries, extended_models = [], {}
+    for candidate in candidates:
+        extended = copy.deepcopy(base) + copy.deepcopy(candidate)
+        strength = f"{candidate.name}.{candidate.strength}"
+        score, order, start, move = _first_order(extended, strength, fit, train, probe, reference, engine)
+        entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start))
+        extended_models[candidate.name] = (extended, strength, move)
+    by_score = sorted(entries, key=lambda e: -e.score)
+    ftol = REFIT_CRITERION_STEP / sum(r.y.numel() for r in train)
+    for entry in by_score[:shortlist]:
+        extended, strength, move = extended_models[entry.effect]
+        try:
+            refit = refit_effect(extended, strength, entry.first_order_strength, train, max_nfev, initial_state, fit,
+                                 move, ftol)
+        except ResolutionError as error:
+            entry.failure = f"refit unresolved: {error}"
+            continue
+        entry.refit = score_model(extended, refit, validation, criterion, initial_state)
+        entry.improvement = baseline.criterion - entry.refit.criterion
+        entry.unphysical = unphysical_values(entry.refit.model._rows())
+    refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
+    if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
+        best = refitted[0]
+        best.refit = _free_shape(best.refit, best.effect, train, validation, criterion, threshold, max_nfev,
+                                 initial_state, ftol)
+        best.improvement = baseline.criterion - best.refit.criterion
+        best.unphysical = unphysical_values(best.refit.model._rows())
+    rest = [e for e in by_score if e.refit is None]
+    return Ranking(baseline, refitted + rest, criterion, threshold, skipped, min_share)

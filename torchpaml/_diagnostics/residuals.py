@@ -1,0 +1,78 @@
+r"""Residual analysis like MATLAB's ``resid``: is $e = y - \hat y$ white, and independent of the input?
+
+With $N$ samples, the normalised autocorrelation $\rho_{ee}(\tau) = r_{ee}(\tau)/r_{ee}(0)$ of a white
+residual lies within $\pm z_{1-\beta/2}/\sqrt N$ with probability $1 - \beta$ at every lag $\tau \ne 0$.
+The cross-correlation $\rho_{ue}(\tau) = r_{ue}(\tau)/\sqrt{r_{uu}(0)\,r_{ee}(0)}$ of an $e$ independent
+of $u$ lies within $\pm z_{1-\beta/2}\sqrt{P/N}$, $P = \sum_k \rho_{uu}(k)\rho_{ee}(k)$ (Bartlett's
+formula; $P = 1$ when either signal is white). Here
+$r_{ab}(\tau) = \frac1N\sum_t a(t+\tau)\,b(t)$ after removing the means. A correlation outside
+the bounds says the model misses dynamics: $\rho_{ee}$ shows unmodelled dynamics of any kind,
+and $\rho_{ue}$ at positive lags shows dynamics from the input that the model does not reproduce.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from scipy import signal as sps
+from scipy import stats
+
+__all__ = ["ResidualAnalysis", "residual_analysis"]
+
+
+def _numpy(x) -> np.ndarray:
+    return x.detach().cpu().numpy().reshape(-1) if isinstance(x, torch.Tensor) else np.asarray(x, float).reshape(-1)
+
+
+@dataclass
+class ResidualAnalysis:
+    """Correlations and their bounds (module docstring). ``lags`` (L+1,) from 0; ``cross_lags`` (2L+1,)."""
+
+    lags: np.ndarray
+    autocorrelation: np.ndarray
+    autocorrelation_bound: float
+    cross_lags: np.ndarray
+    cross_correlation: np.ndarray
+    cross_correlation_bound: float
+    confidence: float
+
+    @property
+    def autocorrelation_outside(self) -> np.ndarray:
+        """Lags τ ≥ 1 where |ρ_ee(τ)| exceeds the bound."""
+        outside = np.abs(self.autocorrelation) > self.autocorrelation_bound
+        return self.lags[1:][outside[1:]]
+
+    @property
+    def cross_correlation_outside(self) -> np.ndarray:
+        """Lags τ where |ρ_ue(τ)| exceeds the bound."""
+        return self.cross_lags[np.abs(self.cross_correlation) > self.cross_correlation_bound]
+
+
+def residual_analysis(u, e, lags: int = 25, confidence: float = 0.99) -> ResidualAnalysis:
+    """Correlations of the residual ``e`` and the input ``u`` (1-D or (1, time, 1)) for lags 0..L and -L..L."""
+    u, e = _numpy(u), _numpy(e)
+    n = len(e)
+    if len(u) != n or n <= 2 * lags:
+        raise ValueError(f"need u and e of one length above 2*lags = {2 * lags}, got {len(u)} and {n}")
+    u, e = u - u.mean(), e - e.mean()
+
+    def correlation(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # r_ab(tau) for tau = -(n-1)..(n-1)
+        return sps.correlate(a, b, mode="full", method="fft") / n
+
+    r_ee, r_uu, r_ue = correlation(e, e), correlation(u, u), correlation(e, u)
+    zero = n - 1
+    rho_ee, rho_uu = r_ee / r_ee[zero], r_uu / r_uu[zero]
+    z = float(stats.norm.ppf(0.5 + confidence / 2))
+    cross = r_ue[zero - lags : zero + lags + 1] / np.sqrt(r_uu[zero] * r_ee[zero])
+    bartlett = float(np.sum(rho_ee * rho_uu))
+    return ResidualAnalysis(
+        lags=np.arange(lags + 1),
+        autocorrelation=rho_ee[zero : zero + lags + 1],
+        autocorrelation_bound=z / np.sqrt(n),
+        cross_lags=np.arange(-lags, lags + 1),
+        cross_correlation=cross,
+        cross_correlation_bound=z * np.sqrt(max(bartlett, 0.0) / n),
+        confidence=confidence,
+    )

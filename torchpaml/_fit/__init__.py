@@ -1,0 +1,29 @@
+"""Fitting: stage 1 (physics, prediction error method), stage 2 (residual), the first-order check, and the
+neural force and sparse regression of discovery."""
+
+from torchpaml._fit.first_order import reestimate_shift
+from torchpaml._fit.neural_force import NeuralForceFit, fit_neural_force
+from torchpaml._fit.output_error import minimize_output_error
+from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
+from torchpaml._fit.sparse_regression import forward_selection, select_support, stlsq
+from torchpaml._fit.residual_fit import (
+    ResidualEstimate,
+    fit_chebyshev_hammerstein,
+    fit_residual,
+)
+
+__all__ = [
+    "NeuralForceFit",
+    "PhysicsEstimate",
+    "estimate_initial_state",
+    "ResidualEstimate",
+    "fit_chebyshev_hammerstein",
+    "fit_neural_force",
+    "forward_selection",
+    "fit_physics",
+    "fit_residual",
+    "minimize_output_error",
+    "reestimate_shift",
+    "select_support",
+    "stlsq",
+]

@@ -1,0 +1,88 @@
+r"""A neural force inside the ODE, fitted by output error with the physics held: a universal differential equation.
+
+$$ \ddot x = a_{\hat\theta}(t, x, v, u) + \mathrm{MLP}_w(x/s_x, v/s_v, u/s_u), \qquad
+   \hat w = \arg\min_w \sum_{\text{records}} \|y - \hat y_w\|^2 / \|y\|^2 $$
+
+with $\hat\theta$ the physics-only estimates (fixed), $s_x, s_v$ the standard deviations of the
+physics' own states on the records and $s_u$ that of the input. The network
+(:class:`~torchpaml._residual.MLPForce`, its last layer at zero, so the fit starts from the physics) is
+simulated by the parallel RK4 engine, each record's Newton solve warm-started from the previous
+iterate's trajectory, and fitted by L-BFGS (:func:`~torchpaml._fit.output_error.minimize_output_error`).
+The hidden layers' initial weights come from ``seed``, so the fit is reproducible.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import torch
+
+from torchpaml._data import Experiment
+from torchpaml._fit.output_error import minimize_output_error
+from torchpaml._physics.base import SecondOrderPhysics
+from torchpaml._residual.mlp import ForceAugmented, MLPForce
+from torchpaml._simulate.shooting import simulate_rk4
+from torchpaml._simulate.simulator import simulate
+
+__all__ = ["NeuralForceFit", "fit_neural_force"]
+
+
+@dataclass
+class NeuralForceFit:
+    """Result of :func:`fit_neural_force`: the universal differential equation and its training mismatch."""
+
+    model: ForceAugmented
+    mismatch: float
+    iterations: int
+
+    @property
+    def force(self) -> MLPForce:
+        return self.model.force
+
+
+def fit_neural_force(
+    physics: SecondOrderPhysics,
+    records: Sequence[Experiment],
+    initial_states: Sequence[torch.Tensor] | None = None,
+    *,
+    hidden: int = 32,
+    depth: int = 2,
+    max_iter: int = 60,
+    seed: int = 0,
+) -> NeuralForceFit:
+    """Fit a neural force on top of ``physics`` (not modified: a frozen copy is used) to ``records``.
+
+    Args:
+        physics: second-order physics, at its fitted parameters.
+        records: training records.
+        initial_states: each record's initial state (n_state,); rest if omitted.
+        hidden: width of each hidden tanh layer of the network.
+        depth: number of hidden tanh layers of the network.
+        max_iter: L-BFGS iterations.
+        seed: seed of the network's initial weights.
+    """
+    frozen = copy.deepcopy(physics)
+    frozen.set_learnable(*frozen.learnable_names(), learn=False)
+    starts = [frozen.initial_state(1) if x0 is None else x0.reshape(1, -1)
+              for x0 in (initial_states or [None] * len(records))]
+    grids = [(r.t - r.t[0], r.u[None], r.hold) for r in records]
+    with torch.no_grad():
+        states = torch.cat([simulate_rk4(frozen, t, u, x0, hold=hold)[0]
+                            for (t, u, hold), x0 in zip(grids, starts, strict=True)])
+    inputs = torch.cat([r.u[:, 0] for r in records])
+    scales = [float(s.std()) or 1.0 for s in (states[:, 0], states[:, 1], inputs)]
+    with torch.random.fork_rng():
+        torch.manual_seed(seed)
+        force = MLPForce(hidden, depth, x_scale=scales[0], v_scale=scales[1], u_scale=scales[2])
+    model = ForceAugmented(frozen, force)
+    warm = [{} for _ in records]
+
+    def predict() -> torch.Tensor:
+        return torch.cat([simulate(model, t, u, x0, method="rk4", warm=w, hold=hold).flatten()
+                          for (t, u, hold), x0, w in zip(grids, starts, warm, strict=True)])
+
+    target = torch.cat([r.y.flatten() for r in records])
+    loss, iterations = minimize_output_error(predict, target, list(force.parameters()), max_iter=max_iter)
+    return NeuralForceFit(model, loss**0.5, iterations)

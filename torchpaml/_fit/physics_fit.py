@@ -1,0 +1,231 @@
+r"""The one physics fit: output error by a trust-region method, with forward-mode Jacobians.
+
+$$ \hat\rho = \arg\min_\rho \tfrac12 \|r(\rho)\|^2, \qquad r = \frac{y - \mathcal H^{\theta(\rho)}[u]}{\|y\|} $$
+
+over the raw (unconstrained) values $\rho$ of the learnable physical parameters $\theta$, all records
+stacked. ``scipy.optimize.least_squares`` (``method="trf"``) solves it; its Jacobian
+$\partial r/\partial\rho$ comes from :func:`~torchpaml._simulate.output_jacobian` (exact path for linear
+physics, the parallel RK4 engine otherwise: one Newton solve and one sweep per parameter).
+
+**Bounds** are the one bound mechanism: ``bounds={name: (lower, upper)}`` in physical units become
+closed bounds on $\rho$ through the parameter's own constraint map (monotone, so the interval maps to
+an interval), and the trust region keeps every iterate strictly inside. An optimum beyond a bound
+ends within about 1e-9 of it (the paper's $\zeta$ capped at 5 for $\alpha = 10$).
+
+The estimate carries its :class:`~torchpaml._fit.uncertainty.Uncertainty` (standard errors, 95 %
+intervals, identifiability), which is also recorded on ``physics`` for ``describe()``; an
+:class:`~torchpaml._fit.uncertainty.IdentifiabilityWarning` names a combination the records do not determine.
+
+Trial steps whose simulation blows up are rejected by the trust region (their residual is inf);
+a start that blows up raises :class:`~torchpaml._errors.SimulationError`.
+
+**The step check** (:mod:`torchpaml._fit.resolution`): at the optimum the output must not depend on the
+RK4 step; where it does, the model's ``substeps`` grow and the fit goes on from the optimum.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import torch
+from scipy.optimize import least_squares
+
+from torchpaml._data import Experiment
+from torchpaml._errors import SimulationError
+from torchpaml._fit.resolution import resolved_substeps
+from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
+from torchpaml._parameters import record_uncertainty
+from torchpaml._simulate.sensitivity import output_jacobian, raw_parameters
+
+__all__ = ["PhysicsEstimate", "estimate_initial_state", "fit_physics"]
+
+
+@dataclass
+class PhysicsEstimate:
+    """Result of :func:`fit_physics`.
+
+    Attributes:
+        parameters: fitted learnable parameters in physical units.
+        mismatch: $\\|y - \\hat y\\| / \\|y\\|$ over all records (a fraction).
+        residual: $r = (y - \\hat y)/\\|y\\|$ at the optimum, all records concatenated, (samples,).
+        jacobian: $\\partial r / \\partial\\rho$ at the optimum, (samples, unknowns): the columns of ``parameters``
+            in their order, then each record's initial state where it was estimated.
+        evaluations: number of simulations (a Jacobian counts as one).
+        uncertainty: standard errors, 95 % intervals and the identifiability check of ``parameters``
+            (and of the initial states, named ``x0[record].state``, where they were estimated).
+        initial_states: each record's initial state (n_state,): rest, or the estimate.
+        substeps: the RK4 steps per sample interval the fit ended at (the step check), also set on the model.
+    """
+
+    parameters: dict[str, float]
+    mismatch: float
+    residual: torch.Tensor
+    jacobian: torch.Tensor
+    evaluations: int
+    uncertainty: Uncertainty
+    initial_states: list[torch.Tensor]
+    substeps: int
+
+
+def _raw_bounds(physics, names: list[str], bounds: dict[str, tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
+    lower, upper = np.full(len(names), -np.inf), np.full(len(names), np.inf)
+    unknown = sorted(set(bounds) - set(names))
+    if unknown:
+        raise ValueError(f"bounds name parameter(s) {unknown} that are not learnable; learnable: {names}")
+    for i, name in enumerate(names):
+        if name not in bounds:
+            continue
+        lo, hi = (float(b) for b in bounds[name])
+        if not lo < hi:
+            raise ValueError(f"bounds for {name!r} need lower < upper, got ({lo}, {hi})")
+        owner, leaf = physics._owner(name)
+        constraint = getattr(owner.parametrizations, leaf)[0]
+        value = float(getattr(owner, leaf).detach())
+        if not lo <= value <= hi:
+            raise ValueError(f"{name} = {value:g} starts outside its bounds ({lo:g}, {hi:g}); assign a start inside")
+        with torch.no_grad():
+            ends = constraint.right_inverse(torch.tensor([lo, hi], dtype=torch.float64)).nan_to_num(-np.inf, np.inf, -np.inf)
+        lower[i], upper[i] = float(ends[0]), float(ends[1])
+    return lower, upper
+
+
+def fit_physics(
+    physics,
+    records: Experiment | Sequence[Experiment],
+    *,
+    bounds: dict[str, tuple[float, float]] | None = None,
+    initial_state: Literal["rest", "estimate"] = "rest",
+    start_states: Sequence[torch.Tensor] | None = None,
+    warm: Sequence[dict] | None = None,
+    max_nfev: int = 60,
+    ftol: float = 1e-10,
+    **simulate_options,
+) -> PhysicsEstimate:
+    r"""Fit the learnable physical parameters of ``physics`` in place to the records (module docstring).
+
+    Args:
+        physics: the model; its learnable parameters are fitted, the others stay fixed. With
+            ``initial_state="estimate"`` it may have none (then only the initial states are fitted).
+        records: one or more :class:`~torchpaml._data.Experiment`.
+        bounds: ``{name: (lower, upper)}`` in physical units.
+        initial_state: ``"rest"`` (each record starts at rest) or ``"estimate"`` (each record's initial
+            state is fitted too, an unbounded unknown per state; see ``PhysicsEstimate.initial_states``).
+        start_states: with ``initial_state="estimate"``, each record's starting guess (n_state,) (default: rest).
+        warm: one dict per record that carries the RK4 engine's last solution into the fit's first Newton solve
+            (``simulate(..., warm=)``, e.g. of a simulation at the start); default fresh ones.
+        max_nfev: iteration limit of the trust region.
+        ftol: the trust region stops when a step lowers the cost $\tfrac12\|r\|^2$ by less than this share of it
+            (scipy's ``ftol``); the default fits to the last digits, a ranking's refits stop earlier.
+        simulate_options: ``segment`` of the RK4 engine, and ``substeps``: RK4 steps per sample interval to
+            start from (default the model's own); the step check raises them where the fitted output
+            depends on the step (:mod:`torchpaml._fit.resolution`).
+    """
+    if initial_state not in ("rest", "estimate"):
+        raise ValueError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
+    estimate_x0 = initial_state == "estimate"
+    physics.substeps = simulate_options.pop("substeps", physics.substeps)
+    records = [records] if isinstance(records, Experiment) else list(records)
+    if start_states is not None and (not estimate_x0 or len(start_states) != len(records)):
+        raise ValueError(f"start_states needs initial_state='estimate' and one state per record ({len(records)}), got "
+                         f"{len(start_states)} with initial_state={initial_state!r}")
+    names = physics.learnable_names()
+    if not names and not estimate_x0:
+        raise ValueError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")
+    p, n_state = len(names), physics.state_dim
+    lower, upper = _raw_bounds(physics, names, bounds or {})
+    if estimate_x0:
+        lower = np.concatenate([lower, np.full(n_state * len(records), -np.inf)])
+        upper = np.concatenate([upper, np.full(n_state * len(records), np.inf)])
+    raw = list(raw_parameters(physics, names).values())
+    targets = [r.y[None] for r in records]
+    scale = float(torch.sqrt(sum(torch.sum(y**2) for y in targets)))
+    count = {"simulations": 0}
+    memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+    warm = [{} for _ in records] if warm is None else list(warm)  # each record's last solution starts the next solve
+
+    def starts(x: np.ndarray) -> list[torch.Tensor | None]:
+        if not estimate_x0:
+            return [None] * len(records)
+        return [torch.from_numpy(x[p + i * n_state: p + (i + 1) * n_state].copy())[None] for i in range(len(records))]
+
+    def evaluate(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual (samples,) and Jacobian (samples, unknowns) at ``x``, once per point."""
+        key = x.tobytes()
+        if key not in memo:
+            count["simulations"] += 1
+            with torch.no_grad():
+                for tensor, value in zip(raw, x, strict=False):
+                    tensor.copy_(torch.tensor(value, dtype=torch.float64))
+            parts = [output_jacobian(physics, names, r.t - r.t[0], r.u[None], x0, warm=w, initial_state=estimate_x0,
+                                     hold=r.hold, **simulate_options)
+                     for r, w, x0 in zip(records, warm, starts(x), strict=True)]
+            residual = torch.cat([(y - y_hat).flatten() for y, (y_hat, _) in zip(targets, parts, strict=True)]) / scale
+            columns = []
+            for i, (_, J) in enumerate(parts):  # each record's x0 columns go to its own block
+                J = J.reshape(-1, J.shape[-1])
+                block = torch.zeros(len(J), len(x) - p, dtype=torch.float64)
+                if estimate_x0:
+                    block[:, i * n_state:(i + 1) * n_state] = J[:, p:]
+                columns.append(torch.cat([J[:, :p], block], dim=1))
+            jacobian = -torch.cat(columns) / scale
+            memo.clear()
+            memo[key] = residual.numpy(), jacobian.numpy()
+        return memo[key]
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        try:
+            return evaluate(x)[0]
+        except SimulationError:
+            return np.full(sum(y.numel() for y in targets), np.inf)
+
+    guesses = [physics.initial_state(1)[0] for _ in records] if start_states is None else start_states
+    guesses = [x.detach().reshape(n_state).numpy() for x in guesses] if estimate_x0 else []
+    start = np.clip(np.concatenate([torch.stack([v.detach() for v in raw]).numpy() if raw else np.zeros(0), *guesses]),
+                    lower, upper)
+    evaluate(start)  # raises SimulationError, naming the blow-up, at a bad start
+
+    def solve(x: np.ndarray):
+        return least_squares(fun, x, jac=lambda x: evaluate(x)[1], bounds=(lower, upper), method="trf",
+                             x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
+
+    def resolution(x: np.ndarray) -> int:
+        """The step check's substeps at ``x`` (the model set to ``x`` first)."""
+        evaluate(x)
+        return resolved_substeps(physics, records, starts(x), float(np.linalg.norm(fun(x))))
+
+    result = solve(start)
+    while (substeps := resolution(result.x)) != physics.substeps:  # go on from the optimum at the finer step
+        physics.substeps = substeps
+        memo.clear()
+        result = solve(result.x)
+    residual, jacobian = evaluate(result.x)
+    values = physics.physical_parameters()
+    residual, jacobian = torch.from_numpy(residual.copy()), torch.from_numpy(jacobian.copy())
+    initial_states = [x0[0] if x0 is not None else physics.initial_state(1)[0] for x0 in starts(result.x)]
+    state_names = [f"x0[{r.name}].{s}" for r in records for s in physics.state_names] if estimate_x0 else []
+    slopes = torch.cat([constraint_slopes(physics, names), torch.ones(len(state_names), dtype=torch.float64)])
+    x0_values = torch.cat(initial_states).tolist() if estimate_x0 else []
+    estimates = torch.tensor([values[n] for n in names] + x0_values, dtype=torch.float64)
+    uncertainty = parameter_uncertainty(names + state_names, estimates, residual, jacobian / slopes,
+                                        at_limit=[n for n, slope in zip(names, slopes, strict=False) if slope == 0])
+    record_uncertainty(physics, {n: uncertainty.std[n] for n in names}, uncertainty.interval)
+    warn_if_unidentifiable(uncertainty, physics.display_name)
+    return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,
+                           jacobian, count["simulations"], uncertainty, initial_states, physics.substeps)
+
+
+def estimate_initial_state(physics, record: Experiment, samples: int | None = None, **simulate_options) -> torch.Tensor:
+    """The initial state (n_state,) that best explains the first ``samples`` of ``record`` (all if ``None``).
+
+    The parameters stay as they are: a frozen copy of ``physics`` goes through :func:`fit_physics`
+    with ``initial_state="estimate"``. Benchmarks that allow a few samples for initialisation (the
+    Silverbox's first 50) score a model from this state.
+    """
+    frozen = copy.deepcopy(physics)
+    frozen.set_learnable(*frozen.learnable_names(), learn=False)
+    window = record if samples is None else record.window(0, samples)
+    return fit_physics(frozen, window, initial_state="estimate", **simulate_options).initial_states[0]

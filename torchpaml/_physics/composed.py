@@ -1,0 +1,128 @@
+r"""``physics + effect``: any physics with extra effects, as one physics model.
+
+$$ \dot x = f_{\text{base}}(t, x, \tilde u) + \sum_e R_e(x, u) + e_v \sum_e F_e(x, v, u), \qquad
+   \tilde u = m_{\text{in}}(u), \qquad y = m_{\text{out}}(h_{\text{base}}(x, \tilde u)), $$
+
+with the rates $R_e$ on named state equations, the forces $F_e$ on the velocity equation $e_v$
+(second-order physics only: there $\ddot x = a_{\text{base}} + \sum_e F_e$), the input maps $m_{\text{in}}$ and output maps $m_{\text{out}}$ of the effects applied in the
+order they were added. Parameters keep their names: the base's (``zeta``, ``omega0``, ...) and each
+effect's under its name (``cubic_stiffness.k3``). Composition flattens:
+``(Oscillator() + CubicStiffness()) + QuadraticDamping()`` is one ``ComposedModel`` with two effects,
+and adding an effect whose name is already present raises ``ValueError``.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from torchpaml._parameters import describe_parameters, format_table
+from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
+from torchpaml._physics.effects import AbstractEffect
+
+__all__ = ["ComposedModel", "compose"]
+
+
+def compose(physics, effect: AbstractEffect) -> ComposedModel:
+    """``physics + effect`` (see the module docstring)."""
+    if not isinstance(effect, AbstractEffect):
+        raise TypeError(f"can only add an AbstractEffect to physics, got {type(effect).__name__}")
+    if isinstance(physics, ComposedModel):
+        model = ComposedModel(physics.base, [*physics.effects.values(), effect])
+    else:
+        model = ComposedModel(physics, [effect])
+    model.substeps = physics.substeps  # the resolution the physics was fitted at
+    return model
+
+
+class ComposedModel(AbstractPhysics):
+    """``base`` physics with ``effects`` (module docstring). Nonlinear: simulated by the RK4 engine.
+
+    Raises ``TypeError`` naming the reason for an effect that does not apply to ``base``
+    (:meth:`~torchpaml._physics.AbstractEffect.applies_to`).
+    """
+
+    def __init__(self, base: AbstractPhysics, effects: list[AbstractEffect]):
+        super().__init__()
+        for effect in effects:
+            reason = effect.applies_to(base)
+            if reason is not None:
+                raise TypeError(f"cannot add {effect.name or type(effect).__name__}: {reason}; write the effect into "
+                                "your own physics instead, or choose effects that apply")
+        names = [e.name for e in effects]
+        clashes = sorted({n for n in names if names.count(n) > 1})
+        if clashes:
+            raise ValueError(f"effect(s) {clashes} added twice; each effect may appear once in a model")
+        if not all(names):
+            raise ValueError("every effect needs a non-empty class attribute `name`")
+        self.base = base
+        self.effects = nn.ModuleDict({e.name: e for e in effects})
+        self.state_names = base.state_names
+        self.input_dim, self.output_dim = base.input_dim, base.output_dim
+        self.substeps = base.substeps
+
+    def _mapped(self, u):
+        for effect in self.effects.values():
+            u = effect.input_map(u)
+        return u
+
+    def derivative(self, t, x, u):
+        mapped = self._mapped(u)
+        if isinstance(self.base, SecondOrderPhysics):  # forces apply there only (AbstractEffect.applies_to)
+            pos, vel = x[..., 0], x[..., 1]
+            acceleration = self.base.acceleration(t, pos, vel, mapped[..., 0])
+            for effect in self.effects.values():
+                force = effect.force(self.base, pos, vel, u[..., 0])
+                if force is not None:
+                    acceleration = acceleration + force
+            dx = state_vector([vel, acceleration])
+        else:
+            dx = self.base.derivative(t, x, mapped)
+        for effect in self.effects.values():
+            extra = effect.rate(self.base, x, u)
+            if extra is not None:
+                dx = dx + extra
+        return dx
+
+    def acceleration(self, t, x, v, u):
+        """$\\ddot x$ of a second-order base with the effects, x, v, u of shape (batch,) -> (batch,)."""
+        if not isinstance(self.base, SecondOrderPhysics):
+            raise TypeError(f"acceleration is defined for second-order physics; {self.base.display_name} is not")
+        return self.derivative(t, torch.stack([x, v], dim=-1), u[..., None])[..., 1]
+
+    def output(self, x, u):
+        y = self.base.output(x, self._mapped(u)).movedim(0, -1)  # batch last: parameters batched as (rows,) broadcast
+        for effect in self.effects.values():
+            y = effect.output_map(y)
+        return y.movedim(-1, 0)
+
+    def initial_state(self, batch):
+        return self.base.initial_state(batch)
+
+    def linear_base(self):
+        return self.base.linear_base()
+
+    # -- names: the base's parameters unprefixed, the effects' under their names ---------------
+    def _rows(self) -> list[dict]:
+        rows = describe_parameters(self.base)
+        for name, effect in self.effects.items():
+            rows += describe_parameters(effect, prefix=f"{name}.")
+        return rows
+
+    def describe(self) -> str:
+        return f"{self.display_name}: {self.equation()}\n{format_table(self._rows())}"
+
+    def _owner(self, name: str) -> tuple[nn.Module, str]:
+        head, _, leaf = name.partition(".")
+        if leaf and head in self.effects:
+            return self.effects[head], leaf
+        return self.base, name
+
+    def equation(self) -> str:
+        """The model in words: the base's class and each effect's term."""
+        return " ".join([type(self.base).__name__.removeprefix("Parametrized"),
+                         *(e.equation for e in self.effects.values())])
+
+    @property
+    def display_name(self) -> str:
+        return " + ".join([self.base.display_name, *self.effects])

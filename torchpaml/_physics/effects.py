@@ -1,0 +1,275 @@
+r"""Physical effects that physics may be missing, composable with ``+``.
+
+Each effect is an ``nn.Module`` with named, constrained parameters and a registry ``name``. It
+acts on the composed model (:mod:`~torchpaml._physics.composed`)
+
+$$ \dot x = f_{\text{base}}(t, x, \tilde u) + \sum_e R_e(x, u) + e_v \sum_e F_e(x, v, u), \qquad
+   \tilde u = \text{the input maps of } u, \qquad y = \text{the output maps of } h_{\text{base}}(x, \tilde u), $$
+
+through a *force* $F_e$ on the velocity equation (second-order physics only), a *rate* $R_e$ on
+named state equations, or the input and output maps (any physics). The library's nine:
+
+==================== ========================================== ===========================
+name                 term                                       parameters (start)
+==================== ========================================== ===========================
+cubic_stiffness      $F = -k_3 x^3$                             k3 (0)
+quadratic_stiffness  $F = -k_2 x^2$                             k2 (0)
+pendulum_restoring   $F = \lambda\,\omega_0^2 (x - \sin x)$: at $\lambda = 1$ the base's $\omega_0^2 x$ becomes $\omega_0^2\sin x$   lam (0)
+coulomb_friction     $F = -F_c \tanh(v/\varepsilon)$ (a smoothed sign)            Fc (0), eps (0.01, shape)
+quadratic_damping    $F = -c_2\, v|v|$                          c2 (0)
+constant_force       $F = f_0$                                  f0 (0)
+input_saturation     $\tilde u = \tanh(s u)/s$ ($= u_{\max}\tanh(u/u_{\max})$, $s = 1/u_{\max}$)   s (0)
+output_saturation    $y = \tanh(s y)/s$ ($= y_{\max}\tanh(y/y_{\max})$)            s (0)
+dead_zone            $\tilde u = u - \mathrm{clip}(u, -d, d)$  d (0)
+==================== ========================================== ===========================
+
+Every effect starts at zero strength, where the composed model equals the base model: that is
+the point where :func:`rank_missing_effects` measures the output sensitivity to each candidate.
+Saturations are parametrised by the inverse level $s$ so that zero strength is $s = 0$ (no
+saturation) rather than $u_{\max} = \infty$; the physical level $1/s$ is reported alongside.
+A *shape* parameter (``eps``: fixed, listed in :attr:`AbstractEffect.shape`) is freed by the ranking
+when that lowers the criterion by more than its threshold.
+Physical ranges (a refit outside is flagged by the ranking): ``lam`` in [0, 1], ``Fc`` and ``c2`` >= 0.
+The forces apply to :class:`~torchpaml._physics.SecondOrderPhysics`; the saturations and the dead
+zone to any physics.
+
+Writing your own: subclass :class:`AbstractEffect`, give it a ``name`` and parameters through
+:func:`~torchpaml._parameters.register_parameters`, and override any of :meth:`AbstractEffect.force`,
+:meth:`AbstractEffect.rate` (with ``states`` naming the equations it needs), :meth:`AbstractEffect.input_map`,
+:meth:`AbstractEffect.output_map`. The first declared parameter is the effect's *strength*
+(:attr:`AbstractEffect.strength`): at strength 0 the effect must leave the model unchanged, and
+parameters may arrive batched with shape (rows,), so combine them with signals elementwise.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import nn
+
+from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
+from torchpaml._physics.base import SecondOrderPhysics, state_vector
+
+__all__ = [
+    "AbstractEffect",
+    "CubicStiffness",
+    "QuadraticStiffness",
+    "PendulumRestoring",
+    "CoulombFriction",
+    "QuadraticDamping",
+    "ConstantForce",
+    "InputSaturation",
+    "OutputSaturation",
+    "DeadZone",
+    "EFFECTS",
+    "default_effects",
+]
+
+
+def _tanh_ratio(s: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+    r"""$\tanh(s z)/s$, continued by its limit $z - s^2 z^3/3$ near $s = 0$ (where the quotient is 0/0)."""
+    small = (s * z).abs() < 1e-4
+    safe = torch.where(s.abs() < 1e-12, torch.ones_like(s), s)
+    return torch.where(small, z - s**2 * z**3 / 3, torch.tanh(safe * z) / safe)
+
+
+class AbstractEffect(nn.Module):
+    """An effect added to physics with ``+`` (module docstring). Override any of the four hooks:
+
+    * ``force(physics, x, v, u)``: an extra acceleration (batch,) from x, v, u (batch,); second-order
+      (mechanical) physics only, where it enters the velocity equation;
+    * ``rate(physics, x, u)``: an extra term of $\\dot x$, (batch, n_state) from x (batch, n_state) and
+      u (batch, n_input), for any physics; :meth:`on_state` builds it for one named state equation;
+    * ``input_map(u)`` and ``output_map(y)``: elementwise transforms of the signals, for any physics.
+
+    Defaults: no force, no rate, identity maps. ``physics`` is the base model, for effects that scale
+    with its parameters. :meth:`applies_to` says why an effect cannot be added to a physics.
+    """
+
+    name: str = ""
+    equation: str = ""
+    #: the state names the effect's ``rate`` needs in the base physics (checked by :meth:`applies_to`)
+    states: tuple[str, ...] = ()
+    #: fixed parameters that set the effect's shape (a smoothing width), which the ranking may free
+    #: when the data asks for it (:func:`~torchpaml._diagnostics.rank_missing_effects`)
+    shape: tuple[str, ...] = ()
+
+    @property
+    def strength(self) -> str:
+        """The strength parameter: the first declared one. At strength 0 the effect must leave the model unchanged."""
+        return next(iter(self._physical))
+
+    def applies_to(self, physics: nn.Module) -> str | None:
+        """Why this effect cannot be added to ``physics`` (the base model), or ``None`` if it can."""
+        if type(self).force is not AbstractEffect.force and not isinstance(physics, SecondOrderPhysics):
+            return (f"{self.name} is a force, which acts on second-order (mechanical) physics with state (position, "
+                    f"velocity); {physics.display_name} is not a SecondOrderPhysics")
+        missing = [s for s in self.states if s not in physics.state_names]
+        if missing:
+            return (f"{self.name} acts on the state(s) {missing}, which {physics.display_name} does not have "
+                    f"(its states: {list(physics.state_names)})")
+        return None
+
+    def force(self, physics: nn.Module, x: torch.Tensor, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor | None:
+        return None
+
+    def rate(self, physics: nn.Module, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor | None:
+        return None
+
+    def input_map(self, u: torch.Tensor) -> torch.Tensor:
+        return u
+
+    def output_map(self, y: torch.Tensor) -> torch.Tensor:
+        return y
+
+    @staticmethod
+    def on_state(physics: nn.Module, x: torch.Tensor, terms: dict[str, torch.Tensor]) -> torch.Tensor:
+        """A ``rate`` (batch, n_state) that adds ``terms[name]`` (batch,) to the equation of each named state."""
+        return state_vector([terms.get(name, torch.zeros_like(x[..., 0])) for name in physics.state_names])
+
+
+class CubicStiffness(AbstractEffect):
+    r"""Hardening (k3 > 0) or softening spring, $F = -k_3 x^3$ (Duffing)."""
+
+    name, equation = "cubic_stiffness", "- k3*x^3"
+
+    def __init__(self, k3: float = 0.0, *, learn=("k3",)):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("k3", k3, "1/(s^2 m^2)", Real(), "cubic stiffness")], learn)
+
+    def force(self, physics, x, v, u):
+        return -self.k3 * x**3
+
+
+class QuadraticStiffness(AbstractEffect):
+    r"""Asymmetric spring, $F = -k_2 x^2$."""
+
+    name, equation = "quadratic_stiffness", "- k2*x^2"
+
+    def __init__(self, k2: float = 0.0, *, learn=("k2",)):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("k2", k2, "1/(s^2 m)", Real(), "quadratic stiffness")], learn)
+
+    def force(self, physics, x, v, u):
+        return -self.k2 * x**2
+
+
+class PendulumRestoring(AbstractEffect):
+    r"""Gravity restoring torque: $\omega_0^2 x \to \omega_0^2[(1 - \lambda) x + \lambda \sin x]$, i.e. $F = \lambda\omega_0^2(x - \sin x)$."""
+
+    name, equation = "pendulum_restoring", "+ lam*omega0^2*(x - sin x)"
+
+    def __init__(self, lam: float = 0.0, *, learn=("lam",)):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("lam", lam, "-", Real(), "share of sin x in the restoring term",
+                                                      physical=(0.0, 1.0))],
+                            learn)
+
+    def applies_to(self, physics):
+        reason = super().applies_to(physics)
+        if reason is None and not hasattr(physics, "omega0"):
+            return f"pendulum_restoring scales with the base's omega0, and {physics.display_name} has none"
+        return reason
+
+    def force(self, physics, x, v, u):
+        return self.lam * physics.omega0**2 * (x - torch.sin(x))
+
+
+class CoulombFriction(AbstractEffect):
+    r"""Dry friction, $F = -F_c\tanh(v/\varepsilon)$; ``eps`` (fixed) is the velocity of the smoothing."""
+
+    name, equation = "coulomb_friction", "- Fc*tanh(v/eps)"
+    shape = ("eps",)
+
+    def __init__(self, Fc: float = 0.0, eps: float = 0.01, *, learn=("Fc",)):
+        super().__init__()
+        register_parameters(self, [
+            PhysicalParameter("Fc", Fc, "m/s^2", Real(), "Coulomb friction level", physical=(0.0, math.inf)),
+            PhysicalParameter("eps", eps, "m/s", Positive(), "smoothing velocity of the sign"),
+        ], learn)
+
+    def force(self, physics, x, v, u):
+        return -self.Fc * torch.tanh(v / self.eps)
+
+
+class QuadraticDamping(AbstractEffect):
+    r"""Aerodynamic drag, $F = -c_2\,v|v|$."""
+
+    name, equation = "quadratic_damping", "- c2*v*|v|"
+
+    def __init__(self, c2: float = 0.0, *, learn=("c2",)):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("c2", c2, "1/m", Real(), "quadratic damping",
+                                                               physical=(0.0, math.inf))], learn)
+
+    def force(self, physics, x, v, u):
+        return -self.c2 * v * v.abs()
+
+
+class ConstantForce(AbstractEffect):
+    r"""A bias force (gravity on a tilted axis, an offset in the drive), $F = f_0$."""
+
+    name, equation = "constant_force", "+ f0"
+
+    def __init__(self, f0: float = 0.0, *, learn=("f0",)):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("f0", f0, "m/s^2", Real(), "constant force")], learn)
+
+    def force(self, physics, x, v, u):
+        return self.f0 * torch.ones_like(x)
+
+
+class InputSaturation(AbstractEffect):
+    r"""Actuator saturation, $\tilde u = \tanh(s u)/s = u_{\max}\tanh(u/u_{\max})$ with $s = 1/u_{\max}$."""
+
+    name, equation = "input_saturation", "u -> umax*tanh(u/umax)"
+
+    def __init__(self, s: float = 0.0, *, learn=("s",)):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("s", s, "1/[u]", Real(), "inverse input saturation level")],
+                            learn)
+
+    def input_map(self, u):
+        return _tanh_ratio(self.s, u)
+
+
+class OutputSaturation(AbstractEffect):
+    r"""Sensor saturation, $y = \tanh(s\,y_{\text{base}})/s = y_{\max}\tanh(y_{\text{base}}/y_{\max})$."""
+
+    name, equation = "output_saturation", "y -> ymax*tanh(y/ymax)"
+
+    def __init__(self, s: float = 0.0, *, learn=("s",)):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("s", s, "1/[y]", Real(), "inverse output saturation level")],
+                            learn)
+
+    def output_map(self, y):
+        return _tanh_ratio(self.s, y)
+
+
+class DeadZone(AbstractEffect):
+    r"""Input dead zone of half-width d: $\tilde u = u - \mathrm{clip}(u, -d, d)$ (0 inside, shifted outside)."""
+
+    name, equation = "dead_zone", "u -> u - clip(u, -d, d)"
+
+    def __init__(self, d: float = 0.0, *, learn=("d",)):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("d", d, "[u]", Real(), "dead-zone half-width")], learn)
+
+    def input_map(self, u):
+        width = self.d.abs()
+        return u - torch.maximum(torch.minimum(u, width), -width)
+
+
+#: The library, by the names used on the command line and in reports.
+EFFECTS: dict[str, type[AbstractEffect]] = {
+    cls.name: cls
+    for cls in (CubicStiffness, QuadraticStiffness, PendulumRestoring, CoulombFriction, QuadraticDamping,
+                InputSaturation, OutputSaturation, ConstantForce, DeadZone)
+}
+
+
+def default_effects() -> list[AbstractEffect]:
+    """A fresh instance of every library effect, at zero strength."""
+    return [cls() for cls in EFFECTS.values()]

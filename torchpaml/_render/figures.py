@@ -1,0 +1,229 @@
+r"""Pure functions from signals and result objects to matplotlib figures.
+
+The same figures serve notebooks, TensorBoard and the diagnosis report. Signals are 1-D tensors or
+arrays over a time grid ``t`` (time,) in s. Result objects are the plain dataclasses of the
+diagnostics (:class:`~torchpaml.Comparison`, :class:`~torchpaml.Ranking`, ...); they carry their
+outputs, so drawing them simulates nothing. The figures are made with the object-oriented API (no
+pyplot state), so they are safe in a headless training process.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+from matplotlib.figure import Figure
+
+if TYPE_CHECKING:
+    from torchpaml._diagnostics import (
+        AmplitudeBins,
+        Comparison,
+        Diagnosis,
+        Discovery,
+        Ladder,
+        ModelScore,
+        Ranking,
+        ResidualAnalysis,
+        ValidityMap,
+    )
+
+__all__ = [
+    "amplitude_figure",
+    "comparison_figure",
+    "diagnosis_figures",
+    "discovery_figure",
+    "dominant_frequency",
+    "ladder_figure",
+    "overlay_figure",
+    "ranking_figure",
+    "residual_analysis_figure",
+    "residual_figure",
+    "spectrum_figure",
+    "validity_figure",
+]
+
+
+def _numpy(x) -> np.ndarray:
+    return x.detach().cpu().numpy().reshape(-1) if isinstance(x, torch.Tensor) else np.asarray(x).reshape(-1)
+
+
+def overlay_figure(t, measured, models: dict, title: str = "") -> Figure:
+    """Measured output and each model's output over time (``models``: label -> signal)."""
+    fig = Figure(figsize=(9, 3.2), tight_layout=True)
+    ax = fig.add_subplot()
+    t = _numpy(t)
+    ax.plot(t, _numpy(measured), color="black", lw=1.2, label="measured")
+    for label, signal in models.items():
+        ax.plot(t, _numpy(signal), lw=1.0, label=label)
+    ax.set(xlabel="t [s]", ylabel="y", title=title or "measured vs models")
+    ax.legend(loc="upper right", fontsize=8)
+    return fig
+
+
+def residual_figure(t, actual, predicted, title: str = "") -> Figure:
+    r"""The residual the data demand, $y - \hat y$, against the one the residual model predicts, $r$."""
+    fig = Figure(figsize=(9, 3.2), tight_layout=True)
+    ax = fig.add_subplot()
+    t = _numpy(t)
+    ax.plot(t, _numpy(actual), color="black", lw=1.2, label="actual y − ŷ")
+    ax.plot(t, _numpy(predicted), lw=1.0, label="predicted r")
+    ax.set(xlabel="t [s]", ylabel="residual", title=title or "actual vs predicted residual")
+    ax.legend(loc="upper right", fontsize=8)
+    return fig
+
+
+def dominant_frequency(t, u) -> float:
+    """The frequency (rad/s) of the largest non-DC line of ``u``'s amplitude spectrum."""
+    t, u = _numpy(t), _numpy(u)
+    spectrum = np.abs(np.fft.rfft(u - u.mean()))
+    frequencies = 2 * math.pi * np.fft.rfftfreq(len(u), d=float(t[1] - t[0]))
+    return float(frequencies[1 + int(np.argmax(spectrum[1:]))])
+
+
+def spectrum_figure(t, residual, drive: float, harmonics: int = 15, title: str = "") -> Figure:
+    r"""Amplitude spectrum of a residual, with the harmonics $k\omega$ of the drive marked (odd solid, even dashed).
+
+    ``drive`` is the drive's fundamental in rad/s (see :func:`dominant_frequency`).
+    """
+    t, r = _numpy(t), _numpy(residual)
+    amplitude = 2 * np.abs(np.fft.rfft(r)) / len(r)
+    frequencies = 2 * math.pi * np.fft.rfftfreq(len(r), d=float(t[1] - t[0]))
+    top = min(frequencies[-1], (harmonics + 0.5) * drive)
+    keep = frequencies <= top
+    fig = Figure(figsize=(9, 3.2), tight_layout=True)
+    ax = fig.add_subplot()
+    ax.semilogy(frequencies[keep], amplitude[keep] + 1e-300, color="black", lw=1.0)
+    for k in range(1, harmonics + 1):
+        if k * drive <= top:
+            ax.axvline(k * drive, color="tab:red" if k % 2 else "tab:blue", lw=0.8, ls="-" if k % 2 else "--")
+    ax.set(xlabel="ω [rad/s]", ylabel="|R(ω)|", title=title or f"residual spectrum, drive harmonics kω (ω = {drive:.3g})")
+    return fig
+
+
+def comparison_figure(comparison: Comparison, experiment: str | None = None) -> Figure:
+    """Measured vs every model of :func:`~torchpaml.compare` on one experiment (default: the first)."""
+    name = experiment or next(iter(comparison.experiments))
+    record = comparison.experiments[name]
+    labels = {f"{m} ({comparison.fit(name, m):.1f} % fit)": y for m, y in comparison.outputs[name].items()}
+    return overlay_figure(record.t, record.y[:, 0], labels, f"compare: {name}")
+
+
+def residual_analysis_figure(analysis: ResidualAnalysis) -> Figure:
+    """The two correlations of :func:`~torchpaml.residual_analysis` with their bounds shaded, as ``resid`` draws them."""
+    fig = Figure(figsize=(9, 5), tight_layout=True)
+    top, bottom = fig.subplots(2, 1)
+    for ax, lags, values, bound, title in (
+        (top, analysis.lags, analysis.autocorrelation, analysis.autocorrelation_bound, "autocorrelation of e"),
+        (bottom, analysis.cross_lags, analysis.cross_correlation, analysis.cross_correlation_bound,
+         "cross-correlation of u and e"),
+    ):
+        ax.axhspan(-bound, bound, color="tab:blue", alpha=0.15, label=f"{100 * analysis.confidence:g} % bound")
+        ax.stem(lags, values, basefmt=" ")
+        ax.set(title=title, xlabel="lag [samples]")
+        ax.legend(loc="upper right", fontsize=8)
+    return fig
+
+
+def validity_figure(validity: ValidityMap, threshold: float = 0.1) -> Figure:
+    """Heat map of :func:`~torchpaml.validity_map` in %, cells above ``threshold`` marked (where the physics breaks)."""
+    fig = Figure(figsize=(6, 4), tight_layout=True)
+    ax = fig.add_subplot()
+    image = ax.imshow(100 * validity.mismatch, origin="lower", aspect="auto", cmap="viridis")
+    for i in range(len(validity.amplitudes)):
+        for j in range(len(validity.frequencies)):
+            value = validity.mismatch[i, j]
+            ax.text(j, i, f"{100 * value:.0f}", ha="center", va="center", fontsize=7,
+                    color="red" if value > threshold else "white")
+    ax.set_xticks(range(len(validity.frequencies)), [f"{f:g}" for f in validity.frequencies])
+    ax.set_yticks(range(len(validity.amplitudes)), [f"{a:g}" for a in validity.amplitudes])
+    ax.set(xlabel="ω [rad/s]", ylabel="amplitude α", title="physics mismatch % per sine test")
+    fig.colorbar(image, ax=ax, label="mismatch %")
+    return fig
+
+
+def amplitude_figure(by_input: AmplitudeBins, by_output: AmplitudeBins) -> Figure:
+    """Bars of :func:`~torchpaml.error_by_amplitude`: the mismatch within bins of |u| and of |y|."""
+    fig = Figure(figsize=(9, 3.5), layout="constrained")
+    for ax, bins, label in zip(fig.subplots(1, 2), (by_input, by_output), ("|u|", "|y|"), strict=True):
+        centers = (bins.edges[1:] + bins.edges[:-1]) / 2
+        ax.bar(centers, 100 * bins.mismatch, width=0.9 * (bins.edges[1] - bins.edges[0]))
+        ax.set_xlabel(f"{label} bin")
+        ax.set_ylabel("mismatch in bin (%)")
+    fig.suptitle("where the fitted physics fails (validation)")
+    return fig
+
+
+def ranking_figure(ranking: Ranking) -> Figure:
+    """Bars: each candidate's first-order score, and the validation mismatch of the refitted ones."""
+    fig = Figure(figsize=(9, 4), layout="constrained")
+    left, right = fig.subplots(1, 2)
+    names = [e.effect for e in ranking.entries]
+    left.barh(names[::-1], [e.score for e in ranking.entries][::-1], color="tab:blue")
+    left.set_xlabel("first-order score (share of residual energy)")
+    refitted = [e for e in ranking.entries if e.refit is not None]
+    right.barh([e.effect for e in refitted][::-1], [100 * e.refit.nrmse_validation for e in refitted][::-1],
+               color="tab:orange")
+    right.axvline(100 * ranking.baseline.nrmse_validation, color="k", linestyle="--", label="baseline")
+    right.set_xlabel("validation mismatch after refit (%)")
+    right.legend()
+    fig.suptitle(f"missing-effect ranking on {ranking.baseline.name}")
+    return fig
+
+
+def ladder_figure(ladder: Ladder, discovered: ModelScore | None = None) -> Figure:
+    """Validation and training mismatch per rung of :func:`~torchpaml.model_ladder`, on a log scale.
+
+    ``discovered``: the physics with the discovered force (:func:`~torchpaml.discover_missing_force`),
+    drawn as a rung of its own.
+    """
+    fig = Figure(figsize=(7, 4), layout="constrained")
+    ax = fig.subplots()
+    labels = ["physics", *(f"+ {name}" for name in ladder.added)]
+    steps = range(len(ladder.steps))
+    ax.semilogy(steps, [100 * s.nrmse_validation for s in ladder.steps], "o-", label="validation")
+    ax.semilogy(steps, [100 * s.nrmse_train for s in ladder.steps], "s--", label="training")
+    if discovered is not None:
+        last = len(ladder.steps)
+        ax.semilogy([last], [100 * discovered.nrmse_validation], "D", color="tab:red", label="physics + discovered")
+        ax.semilogy([last], [100 * discovered.nrmse_train], "x", color="tab:red")
+        labels.append("physics\n+ discovered")
+        steps = range(last + 1)
+    ax.set_xticks(list(steps), labels)
+    ax.set_ylabel("mismatch (%)")
+    ax.set_title("model ladder")
+    ax.legend()
+    return fig
+
+
+def discovery_figure(discovery: Discovery) -> Figure:
+    """The learned force against x, v and u along the training trajectory, the closed form overlaid."""
+    fig = Figure(figsize=(11, 3.6), layout="constrained")
+    s = discovery.samples
+    for ax, name in zip(fig.subplots(1, 3, sharey=True), ("x", "v", "u"), strict=True):
+        ax.plot(s[name], s["learned"], ".", ms=3, alpha=0.5, label="learned force (MLP)")
+        ax.plot(s[name], s["closed_form"], ".", ms=3, alpha=0.5, label="closed form + physics correction")
+        ax.set_xlabel(name)
+    fig.axes[0].set_ylabel("force (acceleration units)")
+    fig.axes[0].legend(fontsize=8)
+    fig.suptitle(f"discovered: {discovery.expression}" + (" (recommended)" if discovery.recommended else ""))
+    return fig
+
+
+def diagnosis_figures(diagnosis: Diagnosis) -> dict[str, Figure]:
+    """Name -> figure of a :class:`~torchpaml.Diagnosis`: ``compare``, ``residual_analysis``,
+    ``error_by_amplitude``, ``ranking``, ``ladder``, and ``discovery`` when it ran."""
+    record = diagnosis.validation[0]
+    outputs = {f"{s.name} ({100 * s.nrmse_validation:.2f} %)": s.validation_outputs[0]
+               for s in diagnosis.compared_models}
+    figures = {
+        "compare": overlay_figure(record.t, record.y[:, 0], outputs, f"validation: {record.name}"),
+        "residual_analysis": residual_analysis_figure(diagnosis.residuals),
+        "error_by_amplitude": amplitude_figure(diagnosis.by_input, diagnosis.by_output),
+        "ranking": ranking_figure(diagnosis.ranking),
+        "ladder": ladder_figure(diagnosis.ladder, None if diagnosis.discovery is None else diagnosis.discovery.discovered),
+    }
+    if diagnosis.discovery is not None:
+        figures["discovery"] = discovery_figure(diagnosis.discovery)
+    return figures

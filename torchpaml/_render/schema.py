@@ -1,0 +1,110 @@
+"""The JSON contracts: ``diagnosis.json`` and ``discovery.json`` as plain dicts of a diagnosis' result objects.
+
+Mismatches are fractions, $\\|y - \\hat y\\| / \\|y\\|$. Every field is documented on the reference page
+``docs/reference/outputs.md``; :data:`SCHEMA_VERSION` names the version of that layout and is the
+first field of both files. It grows when a field is renamed or removed (adding a field keeps it).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from torchpaml._diagnostics import AmplitudeBins, Diagnosis, Discovery, EffectEvidence, HybridScore, Ladder
+
+__all__ = ["SCHEMA_VERSION", "diagnosis_to_dict", "discovery_to_dict"]
+
+#: The version of the ``diagnosis.json`` / ``discovery.json`` layout.
+SCHEMA_VERSION = 1
+
+
+def evidence_to_dict(evidence: EffectEvidence) -> dict:
+    """One row of ``ranking``: a candidate's score and, where refitted, its refitted model's errors."""
+    refit = evidence.refit
+    return {
+        "effect": evidence.effect, "equation": evidence.equation, "score": evidence.score, "order": evidence.order,
+        "first_order_strength": evidence.first_order_strength, "refitted": refit is not None,
+        "nrmse_train": None if refit is None else refit.nrmse_train,
+        "nrmse_validation": None if refit is None else refit.nrmse_validation,
+        "criterion": None if refit is None else refit.criterion,
+        "improvement": evidence.improvement, "parameters": {} if refit is None else refit.parameters,
+        "uncertainty": {} if refit is None else refit.uncertainty, "unphysical": evidence.unphysical,
+        "failure": evidence.failure,
+    }
+
+
+def ladder_to_dicts(ladder: Ladder) -> list[dict]:
+    """One dict per rung of the ladder (``substeps``: the RK4 steps per sample the rung was fitted and scored at)."""
+    return [
+        {"model": s.name, "equation": s.equation, "added": None if i == 0 else ladder.added[i - 1],
+         "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
+         "parameters": s.parameters, "uncertainty": s.uncertainty, "identifiability": s.warning,
+         "substeps": s.model.substeps}
+        for i, s in enumerate(ladder.steps)
+    ]
+
+
+def hybrid_to_dict(hybrid: HybridScore) -> dict:
+    """One row of ``hybrid``: a rung with the Chebyshev residual on top, and the inadequacy alarm's verdict."""
+    return {"model": hybrid.model, "nrmse_train": hybrid.hybrid_train, "nrmse_validation": hybrid.hybrid_validation,
+            "physics_nrmse_train": hybrid.physics_train, "physics_nrmse_validation": hybrid.physics_validation,
+            "inadequate": hybrid.adequacy.inadequate, "message": hybrid.adequacy.message}
+
+
+def discovery_to_dict(discovery: Discovery) -> dict:
+    """The content of ``discovery.json``."""
+    library = None if discovery.library_best is None else discovery.library_best.refit
+    final = discovery.discovered or discovery.physics
+    return {
+        "schema_version": SCHEMA_VERSION,
+        "expression": discovery.expression,
+        "terms": [] if discovery.effect is None else [{"term": t, "coefficient": c}
+                                                      for t, c in discovery.effect.terms_and_coefficients()],
+        "recommended": discovery.recommended,
+        "nrmse_validation": {"physics": discovery.physics.nrmse_validation,
+                             "library_best": None if library is None else library.nrmse_validation,
+                             "neural": discovery.neural_validation, "discovered": final.nrmse_validation},
+        "library_best": None if discovery.library_best is None else discovery.library_best.effect,
+        "reason": discovery.reason,
+        "nrmse_train": {"physics": discovery.physics.nrmse_train,
+                        "library_best": None if library is None else library.nrmse_train,
+                        "neural": discovery.neural_train, "discovered": final.nrmse_train},
+        "criterion": {"physics": discovery.physics.criterion,
+                      "library_best": None if library is None else library.criterion,
+                      "discovered": final.criterion},
+        "parameters": final.parameters,
+        "uncertainty": final.uncertainty,
+        "effect": None if discovery.effect is None else discovery.effect.to_config(),
+    }
+
+
+def _bins(bins: AmplitudeBins) -> dict:
+    return {"edges": bins.edges.tolist(), "counts": bins.counts.tolist(),
+            "nrmse": [float(m) if math.isfinite(m) else None for m in bins.mismatch]}
+
+
+def diagnosis_to_dict(diagnosis: Diagnosis) -> dict:
+    """The content of ``diagnosis.json``."""
+    base, ranking = diagnosis.baseline, diagnosis.ranking
+    return {
+        "schema_version": SCHEMA_VERSION,
+        "baseline": {"model": base.name, "equation": base.equation, "nrmse_train": base.nrmse_train,
+                     "nrmse_validation": base.nrmse_validation, "criterion": base.criterion,
+                     "parameters": base.parameters, "uncertainty": base.uncertainty,
+                     "identifiability": base.warning},
+        "ranking": [evidence_to_dict(e) for e in ranking.entries],
+        "skipped_candidates": ranking.skipped,
+        "criterion": {"name": ranking.criterion, "threshold": ranking.threshold, "min_share": ranking.min_share},
+        "ladder": ladder_to_dicts(diagnosis.ladder),
+        "where_it_fails": {
+            "residual_autocorrelation_lags_outside": diagnosis.residuals.autocorrelation_outside.tolist(),
+            "input_cross_correlation_lags_outside": diagnosis.residuals.cross_correlation_outside.tolist(),
+            "confidence": diagnosis.residuals.confidence,
+            "by_input_amplitude": _bins(diagnosis.by_input),
+            "by_output_amplitude": _bins(diagnosis.by_output),
+        },
+        "hybrid": [hybrid_to_dict(h) for h in diagnosis.hybrids],
+        "discovery": None if diagnosis.discovery is None else discovery_to_dict(diagnosis.discovery),
+        "verdict": diagnosis.verdict,
+    }

@@ -1,0 +1,47 @@
+r"""A physics model with a learned correction, in either of the two placements.
+
+* output-additive (an :class:`~torchpaml._residual.AbstractResidual`): $y = \mathcal H^\theta[u] + \mathcal R^\gamma[u, \hat y]$;
+* a learned force inside the ODE (an :class:`~torchpaml._residual.MLPForce`): $y$ is the output of
+  :class:`~torchpaml._residual.ForceAugmented` (physics + force), and the implied residual is
+  $r = y - \mathcal H^\theta[u]$.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from torchpaml._residual.base import AbstractResidual
+from torchpaml._residual.mlp import ForceAugmented, MLPForce
+
+__all__ = ["Hybrid"]
+
+
+class Hybrid(nn.Module):
+    """``physics`` plus ``residual`` (an output residual or an :class:`MLPForce`).
+
+    ``forward(t, u, **simulate_options)`` returns ``(y_physics, y_hybrid)``, both (batch, time, n_y).
+    A ``warm`` option (see :func:`~torchpaml.simulate`) serves the hybrid's simulation only, so that
+    the two simulations of a nonlinear model do not overwrite each other's states.
+    """
+
+    def __init__(self, physics: nn.Module, residual: nn.Module):
+        super().__init__()
+        if not isinstance(residual, (AbstractResidual, MLPForce)):
+            raise TypeError(
+                f"residual must be an output residual (AbstractResidual) or a learned force (MLPForce), got "
+                f"{type(residual).__name__}"
+            )
+        self.physics, self.residual = physics, residual
+
+    @property
+    def in_ode(self) -> bool:
+        """Whether the correction acts inside the ODE (a force) rather than on the output."""
+        return isinstance(self.residual, MLPForce)
+
+    def forward(self, t: torch.Tensor, u: torch.Tensor, warm: dict | None = None,
+                **simulate_options) -> tuple[torch.Tensor, torch.Tensor]:
+        y_physics = self.physics(t, u, **simulate_options)
+        if self.in_ode:
+            return y_physics, ForceAugmented(self.physics, self.residual)(t, u, warm=warm, **simulate_options)
+        return y_physics, y_physics + self.residual(t, u, y_physics)

@@ -1,0 +1,101 @@
+r"""The unconstrained baseline: multilayer perceptrons, a universal approximator in two placements.
+
+* :class:`MLPResidual` (output-additive): $r_t = \mathrm{MLP}(u_{t-L+1..t}/s_u,\ \hat y_{t-L+1..t}/s_y)$,
+  a NARX-style map of a window of $L$ past inputs and physics outputs (zeros before $t_0$: rest).
+* :class:`MLPForce` inside :class:`ForceAugmented` (state-augmenting, a universal differential
+  equation): $\ddot x = a_{\text{physics}}(t, x, \dot x, u) + \mathrm{MLP}(x/s_x, \dot x/s_v, u/s_u)$.
+
+Neither has any structural relation to the physics, which is the point of the contrast: nothing
+stops them from reproducing (and so replacing) the physics' own response.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from torchpaml._physics.base import SecondOrderPhysics
+from torchpaml._residual.base import AbstractResidual
+
+__all__ = ["MLPResidual", "MLPForce", "ForceAugmented", "mlp"]
+
+
+def mlp(inputs: int, hidden: int, depth: int, outputs: int = 1) -> nn.Sequential:
+    """``depth`` hidden tanh layers of width ``hidden``, float64; the last layer starts at zero output."""
+    layers, width = [], inputs
+    for _ in range(depth):
+        layers += [nn.Linear(width, hidden, dtype=torch.float64), nn.Tanh()]
+        width = hidden
+    last = nn.Linear(width, outputs, dtype=torch.float64)
+    nn.init.zeros_(last.weight)
+    nn.init.zeros_(last.bias)
+    return nn.Sequential(*layers, last)
+
+
+class MLPResidual(AbstractResidual):
+    r"""Output-additive MLP on a window of past inputs and physics outputs.
+
+    Args:
+        window: $L$, the number of past samples of u and of $\hat y$ it sees.
+        hidden: width of each hidden tanh layer.
+        depth: number of hidden tanh layers.
+        u_scale: $s_u$, divides the input u so that it is of order one.
+        y_scale: $s_y$, divides the physics output $\hat y$ so that it is of order one.
+
+    Shape: u, y_physics (batch, time, 1) -> r (batch, time, 1). Starts as the zero model.
+
+    The first layer, a ``Linear`` on the flattened window $(u_{t-L+1..t}, \hat y_{t-L+1..t})$, is applied to
+    every window at once as a causal ``conv1d`` with the same weights: no (time, 2L) copy of the
+    windows is made, and its gradient in $\hat y$ (joint training) is a transposed convolution
+    (26 against 36 ms per pass on 8 000 samples, L = 100, measured).
+    """
+
+    def __init__(self, window: int = 16, hidden: int = 32, depth: int = 2, *, u_scale: float = 1.0, y_scale: float = 1.0):
+        super().__init__()
+        self.window, self.u_scale, self.y_scale = int(window), float(u_scale), float(y_scale)
+        self.net = mlp(2 * self.window, hidden, depth)
+
+    def forward(self, t, u, y_physics=None):
+        if y_physics is None:
+            raise ValueError("MLPResidual needs the physics output: call residual(t, u, y_physics)")
+        signals = torch.cat([u / self.u_scale, y_physics / self.y_scale], dim=-1).transpose(1, 2)  # (B, 2, T)
+        first = self.net[0]  # weight (hidden, 2L): channel c at lag L - 1 - j is column c * L + j
+        padded = nn.functional.pad(signals, (self.window - 1, 0))  # rest before t0
+        hidden = nn.functional.conv1d(padded, first.weight.view(-1, 2, self.window), first.bias)  # (B, hidden, T)
+        return self.net[1:](hidden.transpose(1, 2))
+
+
+class MLPForce(nn.Module):
+    r"""A learned force $\mathrm{MLP}(x/s_x, v/s_v, u/s_u)$; x, v, u (batch,) -> (batch,). Starts at zero."""
+
+    def __init__(self, hidden: int = 32, depth: int = 2, *, x_scale: float = 1.0, v_scale: float = 1.0, u_scale: float = 1.0):
+        super().__init__()
+        self.scales = (float(x_scale), float(v_scale), float(u_scale))
+        self.net = mlp(3, hidden, depth)
+
+    def forward(self, x, v, u):
+        sx, sv, su = self.scales
+        return self.net(torch.stack([x / sx, v / sv, u / su], dim=-1))[..., 0]
+
+
+class ForceAugmented(SecondOrderPhysics):
+    r"""Universal differential equation: ``physics`` with an extra force, $\ddot x = a(t, x, v, u) + F(x, v, u)$.
+
+    The output map is the physics' own. Simulated by an ODE solver (it is nonlinear).
+    """
+
+    def __init__(self, physics: SecondOrderPhysics, force: MLPForce):
+        super().__init__()
+        base = getattr(physics, "base", physics)  # physics + effects keeps its base's acceleration
+        if not isinstance(base, SecondOrderPhysics):
+            raise TypeError(f"ForceAugmented needs second-order (mechanical) physics, got {type(physics).__name__}")
+        self.physics, self.force = physics, force
+
+    def acceleration(self, t, x, v, u):
+        return self.physics.acceleration(t, x, v, u) + self.force(x, v, u)
+
+    def output(self, x, u):
+        return self.physics.output(x, u)
+
+    def linear_base(self):
+        return self.physics.linear_base()

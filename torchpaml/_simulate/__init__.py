@@ -1,0 +1,9 @@
+"""Simulation: exact LTI discretisation, torchdiffeq ODE integration, differentiable IIR filtering."""
+
+from torchpaml._simulate.iir import iir_filter
+from torchpaml._simulate.interpolation import LinearInterpolant
+from torchpaml._simulate.lti import HOLDS, discretize, simulate_lti
+from torchpaml._simulate.sensitivity import output_jacobian, raw_parameters, simulate_record
+from torchpaml._simulate.simulator import simulate, uniform_step
+
+__all__ = ["iir_filter", "LinearInterpolant", "HOLDS", "discretize", "simulate_lti", "simulate", "uniform_step", "output_jacobian", "raw_parameters", "simulate_record"]

@@ -1,0 +1,188 @@
+r"""Exact simulation of linear time-invariant physics for piecewise-linear inputs.
+
+For $\dot x = A x + B u$, $y = C x + D u$ and an input that is linear between samples spaced $h$
+apart (first-order hold), the state obeys exactly
+
+$$ x_{k+1} = \Phi x_k + \Gamma_0 u_k + \Gamma_1 u_{k+1}, \qquad
+   \exp\!\begin{pmatrix} A h & B h & 0 \\ 0 & 0 & I \\ 0 & 0 & 0 \end{pmatrix}
+   = \begin{pmatrix} \Phi & \Gamma_a & \Gamma_b \\ 0 & I & I \\ 0 & 0 & I \end{pmatrix}, $$
+
+with $\Gamma_1 = \Gamma_b$, $\Gamma_0 = \Gamma_a - \Gamma_b$. The recursion is run as a transfer
+function $Y(z) = \big[C\,\mathrm{adj}(zI - \Phi)(\Gamma_0 + z\Gamma_1) + D\,p(z)\big]/p(z)\;U(z)$ whose
+characteristic polynomial $p$ and adjugate come from the Faddeev-LeVerrier recursion (matrix
+products and traces only, so derivatives stay finite at repeated eigenvalues, e.g. critical
+damping). The z-transform of the recursion carries the boundary term $-z\Gamma_1 u_0$, so the
+transfer function alone starts from the state $\Gamma_1 u_0$; the free response to
+$x_0 - \Gamma_1 u_0$, $\sum_k z^{-k} C\Phi^k (x_0 - \Gamma_1 u_0) = z\,C\,\mathrm{adj}(zI-\Phi)(x_0 - \Gamma_1 u_0)/p(z)$,
+is added to start from $x_0$ exactly.
+
+**Zero-order hold.** Where the input is held constant between samples (``hold="zoh"``: a DAC playing
+a sampled signal, as in the cascaded-tanks benchmark), the same exponential gives
+$x_{k+1} = \Phi x_k + \Gamma_a u_k$: $\Gamma_0 = \Gamma_a$ and $\Gamma_1 = 0$.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from torchpaml._errors import DataError
+
+from torchpaml._simulate.iir import iir_filter
+
+__all__ = ["HOLDS", "check_hold", "discrete_response", "discretize", "exact_step", "foh_exponent", "faddeev_leverrier",
+           "simulate_lti", "uniform_step"]
+
+#: How the input moves between two samples: ``"foh"`` (first-order hold, linear: the default) or ``"zoh"``
+#: (zero-order hold, constant until the next sample).
+HOLDS = ("foh", "zoh")
+
+
+def check_hold(hold: str) -> str:
+    """``hold`` itself; a ``ValueError`` naming the choices if it is not one of :data:`HOLDS`."""
+    if hold not in HOLDS:
+        raise ValueError(f"hold must be 'foh' (the input linear between samples) or 'zoh' (held constant until the "
+                         f"next sample), got {hold!r}")
+    return hold
+
+
+def foh_exponent(A: torch.Tensor, B: torch.Tensor, h: float, ramp: bool = True) -> torch.Tensor:
+    r"""The matrix whose exponential holds the first-order-hold discretisation (module docstring),
+    (..., n + 2m, n + 2m) for A (..., n, n) and B (..., n, m). ``ramp=False`` leaves out the input ramp's
+    constant identity block: the exponent's derivative along a change (dA, dB) is ``foh_exponent(dA, dB, h, False)``."""
+    n, m = B.shape[-2:]
+    M = torch.zeros(*A.shape[:-2], n + 2 * m, n + 2 * m, dtype=A.dtype, device=A.device)
+    M[..., :n, :n] = A * h
+    M[..., :n, n : n + m] = B * h
+    if ramp:
+        M[..., n : n + m, n + m :] = torch.eye(m, dtype=A.dtype, device=A.device)
+    return M
+
+
+def discretize(A: torch.Tensor, B: torch.Tensor, h: float, hold: str = "foh"
+               ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    r"""$(\Phi, \Gamma_0, \Gamma_1)$ of the exact discretisation for the input's ``hold``; A (n, n), B (n, m)."""
+    n, m = B.shape
+    E = torch.linalg.matrix_exp(foh_exponent(A, B, h))
+    Phi, Gamma_a, Gamma_b = E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
+    if check_hold(hold) == "zoh":
+        return Phi, Gamma_a, torch.zeros_like(Gamma_b)
+    return Phi, Gamma_a - Gamma_b, Gamma_b
+
+
+def faddeev_leverrier(Phi: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    r"""Characteristic polynomial and adjugate coefficients of $\Phi$ (n, n).
+
+    Returns ``c`` (n + 1,) with $p(z) = \sum_k c_k z^{n-k}$, $c_0 = 1$, and ``N`` (n, n, n) with
+    $\mathrm{adj}(zI - \Phi) = \sum_{k=0}^{n-1} N_k z^{n-1-k}$.
+    """
+    n = Phi.shape[0]
+    eye = torch.eye(n, dtype=Phi.dtype, device=Phi.device)
+    N = [eye]
+    c = [torch.ones((), dtype=Phi.dtype, device=Phi.device)]
+    for k in range(1, n + 1):
+        PN = Phi @ N[-1]
+        c.append(-torch.trace(PN) / k)
+        if k < n:
+            N.append(PN + c[-1] * eye)
+    return torch.stack(c), torch.stack(N)
+
+
+def simulate_lti(
+    A: torch.Tensor,
+    B: torch.Tensor,
+    C: torch.Tensor,
+    D: torch.Tensor,
+    h: float,
+    u: torch.Tensor,
+    x0: torch.Tensor | None = None,
+    hold: str = "foh",
+) -> torch.Tensor:
+    r"""Exact response of $(A, B, C, D)$ to the input through samples ``u``, held as ``hold`` says.
+
+    Args:
+        A, B, C, D: state-space matrices, shapes (n, n), (n, m), (p, n), (p, m).
+        h: sampling interval in seconds (uniform).
+        u: input samples, shape (batch, time, m).
+        x0: initial state, shape (batch, n); zero if omitted.
+        hold: ``"foh"`` (linear between samples) or ``"zoh"`` (constant until the next one).
+
+    Returns:
+        y: shape (batch, time, p).
+    """
+    return discrete_response(*discretize(A, B, h, hold), C, D, u, x0)
+
+
+def discrete_response(
+    Phi: torch.Tensor,
+    G0: torch.Tensor,
+    G1: torch.Tensor,
+    C: torch.Tensor,
+    D: torch.Tensor,
+    u: torch.Tensor,
+    x0: torch.Tensor | None = None,
+) -> torch.Tensor:
+    r"""Response of the discrete system $x_{k+1} = \Phi x_k + \Gamma_0 u_k + \Gamma_1 u_{k+1}$, $y_k = C x_k + D u_k$
+    (module docstring), as a transfer function.
+
+    Args:
+        Phi, G0, G1, C, D: shapes (n, n), (n, m), (n, m), (p, n), (p, m).
+        u: input samples, shape (batch, time, m).
+        x0: initial state, shape (batch, n); zero if omitted.
+
+    Returns:
+        y: shape (batch, time, p).
+    """
+    n, m = G0.shape
+    p = C.shape[0]
+    c, N = faddeev_leverrier(Phi)
+    poles = c[1:]
+    # numerator of u_i -> y_j over powers z^{n-k}, k = 0..n
+    CN = torch.einsum("pn,knl->kpl", C, N)  # (n, p, n)
+    num = torch.zeros(n + 1, p, m, dtype=Phi.dtype, device=Phi.device)
+    num[:n] = num[:n] + CN @ G1
+    num[1:] = num[1:] + CN @ G0
+    num = num + c[:, None, None] * D[None]
+    b = num.permute(1, 2, 0).reshape(p * m, n + 1)  # channel (j, i)
+    a = poles.expand(p * m, n)
+    x = u[..., None, :].expand(*u.shape[:2], p, m).reshape(*u.shape[:2], p * m)
+    y = iir_filter(x, b, a).reshape(*u.shape[:2], p, m).sum(-1)
+    start = -u[:, 0] @ G1.T if x0 is None else x0 - u[:, 0] @ G1.T
+    return y + _free_response(CN, poles, start, u)
+
+
+def _free_response(CN: torch.Tensor, poles: torch.Tensor, x0: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+    r"""$y_k = C\Phi^k x_0$ as the impulse response of $z\,C\,\mathrm{adj}(zI - \Phi)x_0/p(z)$; (batch, time, p)."""
+    n, p = CN.shape[0], CN.shape[1]
+    batch, T = u.shape[:2]
+    impulse = torch.zeros(1, T, batch * p, dtype=u.dtype, device=u.device)
+    impulse[:, 0] = 1.0
+    numerator = torch.einsum("kpl,bl->bpk", CN, x0).reshape(batch * p, n)
+    numerator = torch.cat([numerator, torch.zeros_like(numerator[:, :1])], dim=1)
+    free = iir_filter(impulse, numerator, poles.expand(batch * p, n))
+    return free.reshape(T, batch, p).transpose(0, 1)
+
+
+def uniform_step(t: torch.Tensor, rtol: float = 1e-6) -> float:
+    """The sampling interval of a uniform grid ``t`` (time,); raises :class:`DataError` if not uniform."""
+    if t.dim() != 1 or len(t) < 2:
+        raise DataError(f"time must be a 1-D tensor of at least 2 samples, got shape {tuple(t.shape)}")
+    dt = torch.diff(t)
+    h = float(dt.mean())
+    if not bool(torch.all(dt > 0)):
+        raise DataError("time must be strictly increasing; sort the samples and drop duplicates")
+    if float((dt - h).abs().max()) > rtol * h:
+        raise DataError(
+            f"uniform sampling is required here, but the time steps range from {float(dt.min()):.6g} to "
+            f"{float(dt.max()):.6g} s; resample onto a uniform grid, or use an ODE method (method='dopri5')"
+        )
+    return h
+
+
+def exact_step(physics, t: torch.Tensor) -> float | None:
+    """The sampling interval when ``physics`` takes the exact path (linear physics, uniform grid), else ``None``."""
+    if physics.state_space() is None:
+        return None
+    try:
+        return uniform_step(t)
+    except DataError:
+        return None

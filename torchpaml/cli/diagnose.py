@@ -1,0 +1,132 @@
+"""``torchpaml diagnose``: the diagnosis of a physics model on measured records, from the command line.
+
+``torchpaml diagnose --data TRAIN.csv --validation VAL.csv --physics oscillator [--fix omega0=2.0] --out DIR``
+fits the library physics (every parameter learnable unless fixed), ranks the library effects as
+the missing one, climbs the model ladder, fits the Chebyshev residual on top and writes the report
+(:func:`~torchpaml._render.report.write_report`). ``torchpaml diagnose --config FILE.yaml`` takes
+the same keys from YAML, where ``physics`` and ``candidates`` may also be user classes
+(``class_path``/``init_args``), so user-defined physics and user-defined effects are diagnosed the
+same way. ``--discover`` adds the discovery of a force outside the library (``discovery.json``).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Literal
+
+from jsonargparse import ActionConfigFile, ArgumentParser
+
+from torchpaml._data import Experiment
+from torchpaml._physics.base import AbstractPhysics
+from torchpaml._physics.effects import EFFECTS, AbstractEffect
+from torchpaml._physics.registry import PHYSICS, parse_assignments
+
+__all__ = ["diagnose_command", "run_diagnose"]
+
+#: Repeatable flags, spelled ``--fix NAME=VALUE`` on the command line (jsonargparse appends with ``+``).
+REPEATED = {"--fix": "--fix+", "--effect": "--effects+"}
+#: Switches that may stand alone: ``--discover`` means ``--discover true``.
+SWITCHES = ("--discover",)
+
+
+def _physics(physics: str | AbstractPhysics, fix: list[str] | None) -> AbstractPhysics:
+    if isinstance(physics, str):
+        if physics not in PHYSICS:
+            raise ValueError(f"unknown physics {physics!r}; choose one of {sorted(PHYSICS)}, or give a class_path "
+                             "to your own physics in a --config file")
+        physics = PHYSICS[physics]()
+        physics.set_learnable(*physics.physical_parameters())
+    values = parse_assignments(fix, "--fix")
+    unknown = sorted(set(values) - set(physics.physical_parameters()))
+    if unknown:
+        raise ValueError(f"--fix names unknown parameter(s) {unknown}; {physics.display_name} has "
+                         f"{sorted(physics.physical_parameters())}")
+    return physics.assign(**values).set_learnable(*values, learn=False)
+
+
+def _candidates(effects: list[str] | None, candidates: list[AbstractEffect] | None) -> list[AbstractEffect]:
+    names = list(EFFECTS) if effects is None and candidates is None else list(effects or [])
+    unknown = sorted(set(names) - set(EFFECTS))
+    if unknown:
+        raise ValueError(f"unknown effect(s) {unknown}; the library has {sorted(EFFECTS)}; put your own effects "
+                         "under `candidates:` in a --config file")
+    chosen = [EFFECTS[name]() for name in names] + list(candidates or [])
+    if not chosen:
+        raise ValueError("no candidate effects: name library effects with --effect, or list `candidates:` in --config")
+    return chosen
+
+
+def diagnose_command(
+    data: str,
+    validation: str,
+    out: str,
+    physics: str | AbstractPhysics = "oscillator",
+    fix: list[str] | None = None,
+    effects: list[str] | None = None,
+    candidates: list[AbstractEffect] | None = None,
+    shortlist: int = 2,
+    criterion: Literal["bic", "aic"] = "bic",
+    threshold: float = 10.0,
+    min_share: float = 0.05,
+    initial_state: Literal["rest", "estimate"] = "rest",
+    hold: Literal["foh", "zoh"] | None = None,
+    discover: bool = False,
+) -> dict:
+    """Diagnose ``physics`` on the records and write the report into ``out``; returns the ``diagnosis.json`` content.
+
+    Args:
+        data: training record, CSV with header ``t,u,y``.
+        validation: validation record, CSV with header ``t,u,y`` (a different input).
+        out: output folder (diagnosis.json, figures/, report.html, tensorboard/).
+        physics: a library physics name (oscillator, pendulum: every parameter learnable), or in a
+            config file a physics object (``class_path``/``init_args``; its own ``learn``).
+        fix: ``NAME=VALUE`` parameters held fixed at VALUE (repeat ``--fix``).
+        effects: library effects to rank (repeat ``--effect NAME``); default all, or none when
+            ``candidates`` are given.
+        candidates: user-defined effects (``AbstractEffect`` subclasses, config only).
+        shortlist: how many of the best-scored candidates are refitted.
+        criterion: ``bic`` or ``aic`` on the validation record.
+        threshold: criterion improvement needed to add an effect.
+        min_share: relative fall of the validation mismatch needed to add an effect (0.05: 5 %).
+        initial_state: ``rest`` (records start at rest) or ``estimate`` (each record's initial state is
+            fitted: with the parameters on training records, alone on validation records).
+        hold: how the input moved between samples, ``foh`` (linearly) or ``zoh`` (held constant, as a
+            DAC plays a sampled signal); default the CSV metadata's ``"hold"``, else ``foh``.
+        discover: also discover a force outside the library: a neural force in the ODE, then its
+            closed form (``discovery.json``, ``discovered_effect.yaml``; linear second-order physics).
+    """
+    from torchpaml._diagnostics.diagnosis import diagnose
+    from torchpaml._render.report import write_report
+    from torchpaml._render.tables import ranking_table
+
+    if Path(out).is_file():
+        raise ValueError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
+    if shortlist < 1:
+        raise ValueError(f"--shortlist must be at least 1 (how many best-scored candidates are refitted), got {shortlist}")
+    if not 0 <= min_share < 1:
+        raise ValueError(f"--min_share is a share of the validation mismatch, in [0, 1); got {min_share}")
+    model = _physics(physics, fix)
+    chosen = _candidates(effects, candidates)
+    train, held_out = Experiment.from_csv(data, hold=hold), Experiment.from_csv(validation, hold=hold)
+    diagnosis = diagnose(model, chosen, train, held_out, shortlist=shortlist, criterion=criterion,
+                         threshold=threshold, min_share=min_share, initial_state=initial_state, discover=discover)
+    path = write_report(diagnosis, out)
+    print(ranking_table(diagnosis.ranking))
+    print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")
+    return json.loads(path.read_text())
+
+
+def run_diagnose(argv: list[str], prog: str = "torchpaml diagnose") -> dict:
+    """Parse ``argv`` (after ``diagnose``) with jsonargparse, ``--config`` included, and run :func:`diagnose_command`."""
+    parser = ArgumentParser(prog=prog, description=__doc__)
+    parser.add_argument("--config", action=ActionConfigFile, help="YAML file with the arguments below")
+    parser.add_function_arguments(diagnose_command)
+    argv = [f"{a}=true" if a in SWITCHES and (i + 1 == len(argv) or argv[i + 1].startswith("--")) else a
+            for i, a in enumerate(argv)]
+    argv = [REPEATED.get(a, a) for a in argv]
+    argv = [f"{REPEATED[a.partition('=')[0]]}={a.partition('=')[2]}" if a.partition("=")[0] in REPEATED else a
+            for a in argv]
+    config = parser.instantiate(parser.parse_args(argv))
+    del config["config"]
+    return diagnose_command(**config)

@@ -1,9 +1,0 @@
-"""Simulation: exact LTI discretisation, torchdiffeq ODE integration, differentiable IIR filtering."""
-
-from torchpaml.simulate.iir import iir_filter
-from torchpaml.simulate.interpolation import LinearInterpolant
-from torchpaml.simulate.lti import HOLDS, discretize, simulate_lti
-from torchpaml.simulate.sensitivity import output_jacobian, raw_parameters, simulate_record
-from torchpaml.simulate.simulator import simulate, uniform_step
-
-__all__ = ["iir_filter", "LinearInterpolant", "HOLDS", "discretize", "simulate_lti", "simulate", "uniform_step", "output_jacobian", "raw_parameters", "simulate_record"]
