@@ -29,7 +29,16 @@ from pathlib import Path
 
 from tanks import SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow
 
-from torchpaml import DeadZone, diagnose, diagnosis_to_dict, ranking_table, Experiment, OutputSaturation, simulate_record, write_report
+from torchpaml import (
+    DeadZone,
+    diagnose,
+    diagnosis_to_dict,
+    Experiment,
+    OutputSaturation,
+    ranking_table,
+    simulate_record,
+    write_report,
+)
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "cascaded_tanks"
 VALIDATION_SHARE = 0.25

@@ -115,9 +115,9 @@ class UpperOverflow(AbstractEffect):
     the share of the spill that falls into the lower tank.
 
     The rate $c$ is bounded by :data:`MAX_SPILL_RATE`: a spill faster than one sample interval is a hard
-    cap on the 4 s grid, and the data cannot tell it from an instant one. Unbounded, the fit drove $c$ to
+    cap on the 4 s grid, and the data cannot tell it from an instant one. Unbounded, the fit drives $c$ to
     40 1/s, where the RK4 step (4 s) no longer resolves the spill and the integration error, not the
-    physics, fitted the data (the step check of :func:`~torchpaml._fit.fit_physics` refuses that optimum).
+    physics, fits the data (the step check of :func:`~torchpaml._fit.fit_physics` refuses that optimum).
     """
 
     name, equation = "upper_overflow", "- c*max(x_upper - h*k4/k1, 0), s of it into the lower tank"

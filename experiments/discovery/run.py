@@ -9,7 +9,7 @@ The diagnosed physics is the oscillator alone, started 25-75 % off. The library 
 the validation mismatch of the noise-free record.
 
 Writes ``DIR/discovery_cases.json`` (per case: the truth, ``discovery.json``'s content, the floor
-and the seconds) and ``DIR/table.md``, the README's table.
+and the seconds) and ``DIR/table.md``, the table of the docs' discovery pages.
 """
 
 from __future__ import annotations
@@ -23,10 +23,10 @@ import torch
 from forces import OUTSIDE
 
 from torchpaml import (
-    discovery_to_dict,
     CoulombFriction,
     default_effects,
     discover_missing_force,
+    discovery_to_dict,
     mismatch,
     Oscillator,
     rank_missing_effects,

@@ -40,10 +40,10 @@ from pathlib import Path
 import numpy as np
 
 from torchpaml import (
-    diagnosis_to_dict,
-    discovery_to_dict,
     default_effects,
     diagnose,
+    diagnosis_to_dict,
+    discovery_to_dict,
     estimate_initial_state,
     Experiment,
     Oscillator,

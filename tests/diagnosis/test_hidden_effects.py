@@ -11,13 +11,13 @@ import pytest
 import torch
 
 from torchpaml import (
-    ranking_table,
     default_effects,
     EFFECTS,
     mismatch,
     model_ladder,
     Oscillator,
     rank_missing_effects,
+    ranking_table,
     Simulated,
 )
 

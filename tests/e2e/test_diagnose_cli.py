@@ -2,9 +2,11 @@
 
 import json
 import os
+import re
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
@@ -13,6 +15,21 @@ from torchpaml.cli import main
 from torchpaml import EFFECTS
 
 FIGURES = ("compare", "residual_analysis", "error_by_amplitude", "ranking", "ladder")
+OUTPUTS_PAGE = Path(__file__).resolve().parents[2] / "docs" / "reference" / "outputs.md"
+
+
+def field_names(content, names=None) -> set[str]:
+    """Every key of a JSON document, at any depth, except those of maps keyed by data (parameters, effects)."""
+    names = set() if names is None else names
+    if isinstance(content, dict):
+        for key, value in content.items():
+            names.add(key)
+            if key not in ("parameters", "uncertainty", "skipped_candidates", "effect"):
+                field_names(value, names)
+    elif isinstance(content, list):
+        for item in content:
+            field_names(item, names)
+    return names
 
 USER_MODEL = '''
 import torch
@@ -121,6 +138,10 @@ def test_the_contract_run_writes_json_figures_html_and_tensorboard(measured):
     assert report["discovery"] == discovery
     assert (out / "figures" / "discovery.png").stat().st_size > 1000 and 'src="figures/discovery.png"' in html
     assert "Discovery" in html and "v*Abs(v)" in (out / "discovered_effect.yaml").read_text()
+    assert report["schema_version"] == discovery["schema_version"] == 1
+    spans = re.findall(r"`([^`]+)`", OUTPUTS_PAGE.read_text())
+    documented = {word for span in spans for word in re.findall(r"\w+", span)}
+    assert sorted(field_names(report) - documented) == []  # every field of diagnosis.json and discovery.json
     assert events.Scalars("discovery/nrmse_validation/discovered")[0].value == pytest.approx(
         discovery["nrmse_validation"]["discovered"], rel=1e-6)
 

@@ -12,13 +12,13 @@ import pytest
 import torch
 
 from torchpaml import (
-    ranking_table,
     ConstantForce,
     CubicStiffness,
     Experiment,
     fit_physics,
     Oscillator,
     pseudorandom,
+    ranking_table,
     ResolutionError,
     simulate,
     time_grid,

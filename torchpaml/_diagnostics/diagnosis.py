@@ -16,7 +16,7 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
 4. with ``discover=True``, the **discovery** of a force outside the library
    (:func:`~torchpaml._diagnostics.discover_missing_force`: a neural force in the ODE, then its closed
    form, ranked against the library's best effect). It is asked for, not automatic: it trains a
-   network through the simulator: seconds on a record of a thousand samples, tens of minutes on 5 x 10^4.
+   network through the simulator, so its cost grows with the record's length.
 """
 
 from __future__ import annotations

@@ -41,7 +41,7 @@ from typing import Literal
 import torch
 
 from torchpaml._data import Experiment
-from torchpaml._diagnostics.ranking import EffectEvidence, ModelScore, Ranking, refit_effect, score_model
+from torchpaml._diagnostics.ranking import EffectEvidence, ModelScore, Ranking, as_records, refit_effect, score_model
 from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import select_support
 from torchpaml._metrics import mismatch
@@ -64,7 +64,7 @@ STEP = 1e-6
 
 @dataclass
 class Discovery:
-    """What :func:`discover_missing_force` found (module docstring); :meth:`to_dict` is ``discovery.json``.
+    """What :func:`discover_missing_force` found (module docstring); :func:`~torchpaml.discovery_to_dict` makes ``discovery.json``.
 
     ``effect`` is the refitted closed form (``None`` when the regression kept no term); ``samples``
     holds x, v, u, the learned force and the closed form's force (with the physics' correction)
@@ -148,8 +148,8 @@ def why_discovery_cannot_run(physics) -> str | None:
 
 def discover_missing_force(
     ranking: Ranking,
-    train: Sequence[Experiment],
-    validation: Sequence[Experiment],
+    train: Experiment | Sequence[Experiment],
+    validation: Experiment | Sequence[Experiment],
     *,
     criterion: Literal["bic", "aic"] = "bic",
     threshold: float = 10.0,
@@ -166,8 +166,8 @@ def discover_missing_force(
         ranking: the library's ranking on the physics (:func:`~torchpaml._diagnostics.rank_missing_effects`,
             the ladder's first): its baseline is the fitted physics, its best refitted physical entry the
             library's best effect.
-        train: the training records the ranking was made on.
-        validation: the validation records the ranking was made on.
+        train: the training record(s) the ranking was made on.
+        validation: the validation record(s) the ranking was made on.
         criterion: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
         threshold: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
         min_share: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
@@ -177,6 +177,7 @@ def discover_missing_force(
         max_nfev: iteration limit of the closed form's refit.
         seed: seed of the network's initial weights.
     """
+    train, validation = as_records(train), as_records(validation)
     baseline = ranking.baseline
     physics = baseline.model
     reason = why_discovery_cannot_run(physics)

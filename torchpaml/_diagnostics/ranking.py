@@ -23,9 +23,7 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
    (all parameters learnable as in the physics, plus the effect's) on the training records. Each
    refit starts from the first-order Gauss-Newton step: the strength $k_1$, and the physics' own
    unknowns moved by $-J^+(r - \beta d_c)$. It stops when a step changes the training criterion by
-   less than :data:`REFIT_CRITERION_STEP` (0.1, a hundredth of the threshold). Measured on the
-   benchmark's case (``benchmarks/bench_ranking.py``): 13 simulations for the three refits, where
-   a start from $k_1$ alone and the fit's own tolerance took 21, with the same table. When
+   less than :data:`REFIT_CRITERION_STEP` (0.1, a hundredth of the threshold). When
    the best of them has shape parameters (:attr:`~torchpaml._physics.AbstractEffect.shape`: the
    width of Coulomb friction's smoothed sign), it is refitted once more with them freed, and that
    refit is kept when it lowers the criterion by more than ``threshold``: the data asks for another shape.
@@ -141,7 +139,7 @@ class Ranking:
         return best if share >= self.min_share else None
 
 
-def _records(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]:
+def as_records(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]:
     return [experiments] if isinstance(experiments, Experiment) else list(experiments)
 
 
@@ -435,7 +433,7 @@ def rank_missing_effects(
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
     """
-    train, validation = _records(train), _records(validation)
+    train, validation = as_records(train), as_records(validation)
     names = [c.name for c in candidates]
     if len(set(names)) != len(names):
         raise ValueError(f"candidate effects must have distinct names, got {names}")

@@ -13,8 +13,8 @@ power of two that fourth order predicts brings $g$ to half the tolerance, and th
 optimum at the finer step, until the check passes.
 
 Beyond :data:`MAX_SUBSTEPS` it raises :class:`~torchpaml._errors.ResolutionError`: a rate of the fitted
-model is far faster than the sampling (a spill at 40 1/s in a record sampled every 4 s), and the fit had
-settled where RK4's error, not the physics, explained the data. The fix is to bound that rate, or to
+model is far faster than the sampling (a spill at 40 1/s in a record sampled every 4 s), and the fit
+settles where RK4's error, not the physics, explains the data. The fix is to bound that rate, or to
 sample faster. Records on the exact path (linear physics on a uniform grid) have no step error.
 """
 

@@ -11,8 +11,8 @@ For $b \approx A\xi$ with the columns of $A$ (samples, terms) scaled to unit nor
   against the *measured* target, whose residual is noise, by the extended BIC of Chen & Chen (2008),
   $\mathrm{EBIC} = n\ln(\mathrm{SSE}/n) + k\ln n + 2\ln\binom{p}{k}$ for $k$ of $p$ columns; the
   lowest wins, the empty support included. The last term pays for the search: among 28 candidates
-  the best one fits noise better than BIC's $\ln n$ alone allows for (a spurious $u^2$ on records
-  of the physics alone, measured).
+  the best one fits noise better than BIC's $\ln n$ alone allows for (plain BIC picks a spurious
+  $u^2$ on records of the physics alone).
 
 Plain least squares (``torch.linalg.lstsq``) does the work: the problems are tens of columns, so
 PySINDy would add a dependency for a loop of ten lines.

@@ -218,7 +218,8 @@ def diagnosis_figures(diagnosis: Diagnosis) -> dict[str, Figure]:
     outputs = {f"{s.name} ({100 * s.nrmse_validation:.2f} %)": s.validation_outputs[0]
                for s in diagnosis.compared_models}
     figures = {
-        "compare": overlay_figure(record.t, record.y[:, 0], outputs, f"validation: {record.name}"),
+        "compare": overlay_figure(record.t, record.y[:, 0], outputs,
+                                  f"measured vs models, validation record {record.name!r}"),
         "residual_analysis": residual_analysis_figure(diagnosis.residuals),
         "error_by_amplitude": amplitude_figure(diagnosis.by_input, diagnosis.by_output),
         "ranking": ranking_figure(diagnosis.ranking),

@@ -17,12 +17,10 @@ $J_{t,j} = \partial \hat y_t / \partial \rho_j$ for the raw (unconstrained) para
 
 Central differences take the step :data:`DIFFERENCE_STEP` (error ~1e-10 relative).
 
-Differences, not forward mode: measured on torch 2.13, forward-mode AD sends every operation that
-mixes a dual tensor with a Python number through Python decompositions (about 500 µs each instead of
-5 µs), and a physics' step is full of them; its first use also imports them (1.5 to 3 s). On the
-exact path, differences of whole simulations made a linear fit on 600 samples 2.5x faster than forward
-mode, and the recurrence (two filter runs instead of 2p + 1) about 1.5x faster again (a 3-column
-Jacobian on 600 samples: 8 ms instead of 12 ms).
+Differences, not forward mode: on torch 2.13, forward-mode AD sends every operation that mixes a
+dual tensor with a Python number through Python decompositions, about a hundred times slower than the
+operation itself, and a physics' step is full of them. On the exact path the recurrence needs two
+filter runs for all columns, where differences of whole simulations need 2p + 1.
 
 With ``initial_state=True`` the Jacobian gains one column per state, $\partial\hat y_t/\partial x_{0,i}$:
 on the exact path the free response $C\Phi^k e_i$ (rows of the same filter run with $S_0 = e_i$), on

@@ -1,7 +1,7 @@
 r"""Fixed-step RK4 on the sample grid, parallel in time: multiple shooting with Newton on the segment starts.
 
 **Why.** Eager PyTorch pays a dispatch cost of a few microseconds per operation, and an RK4 step of a
-small ODE is about a hundred operations, so a sample-by-sample loop costs ~200 µs per sample whether
+small ODE is about a hundred operations, so a sample-by-sample loop costs the same per sample whether
 it carries 1 row or 1000. The cost is the number of *sequential* steps, so this engine makes them few.
 
 **The step.** Between samples $t_k$ and $t_{k+1}$ ($h_k = t_{k+1} - t_k$, any spacing) the input is the
@@ -57,8 +57,8 @@ from torchpaml._simulate.scan import linear_recurrence
 __all__ = ["RK4Solution", "SEGMENT_STEPS", "simulate_rk4", "solve_rk4"]
 
 #: Default segment length L (steps). A sweep costs L dispatch-bound steps plus arithmetic on every
-#: sample, which does not depend on L; measured (benchmarks/bench_simulation.py and nonlinear fits on
-#: 600, 6 000 and 65 536 samples), 2 beat 1, 4, 8 and 16 at every length.
+#: sample, which does not depend on L; 2 is the fastest of 1, 2, 4, 8 and 16 for simulations and
+#: nonlinear fits from 600 to 65 536 samples (benchmarks/bench_simulation.py).
 SEGMENT_STEPS = 2
 #: Relative size of the start perturbations of the central differences (the sweep that feeds gradients).
 PERTURBATION = 1e-5
@@ -375,7 +375,7 @@ def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, wa
         x0: initial state, (batch, n_state).
         warm: a dict the caller keeps between solves of the same record under nearby parameters (the
             steps of a training run): the converged states are stored under ``"states"`` and start the
-            next solve's Newton (in about 3 sweeps instead of 7 to 8 for a neural force, measured).
+            next solve's Newton, which then needs fewer sweeps.
         options: ``substeps`` (RK4 steps per sample interval, default the model's ``substeps``), ``segment`` (steps per
             shooting segment L, default :data:`SEGMENT_STEPS`), ``tol`` (Newton stops when every
             continuity defect is below ``tol`` times the state's scale; default :data:`NEWTON_TOL`, or

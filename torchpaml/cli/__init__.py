@@ -41,11 +41,11 @@ def _command(name: str) -> Callable[[list[str], str], object]:
     if name in LIGHTNING_COMMANDS:
         from torchpaml.cli.lightning import run_lightning
 
-        return lambda argv, prog: run_lightning(argv)
+        return lambda argv, prog: run_lightning(argv, prog)
     if name == "diagnose":
         from torchpaml.cli.diagnose import run_diagnose
 
-        return lambda argv, prog: run_diagnose(argv[1:], prog)
+        return lambda argv, prog: run_diagnose(argv[1:], f"{prog} diagnose")
     from torchpaml.cli.commands import run_command
 
     return run_command

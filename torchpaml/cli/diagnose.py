@@ -3,7 +3,7 @@
 ``torchpaml diagnose --data TRAIN.csv --validation VAL.csv --physics oscillator [--fix omega0=2.0] --out DIR``
 fits the library physics (every parameter learnable unless fixed), ranks the library effects as
 the missing one, climbs the model ladder, fits the Chebyshev residual on top and writes the report
-(:func:`~torchpaml._render.report.write_report`). ``torchpaml diagnose --config FILE.yaml`` takes
+(diagnosis.json, report.html, figures/, tensorboard/). ``torchpaml diagnose --config FILE.yaml`` takes
 the same keys from YAML, where ``physics`` and ``candidates`` may also be user classes
 (``class_path``/``init_args``), so user-defined physics and user-defined effects are diagnosed the
 same way. ``--discover`` adds the discovery of a force outside the library (``discovery.json``).

@@ -9,6 +9,8 @@ resume with ``--ckpt_path``. The resolved config is saved as ``config.yaml`` bes
 
 from __future__ import annotations
 
+import sys
+
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import LightningCLI
 
@@ -23,13 +25,15 @@ def trainer_defaults() -> dict:
     return {"precision": "64-true", "log_every_n_steps": 1, "callbacks": [ModelCheckpoint(save_last=True)]}
 
 
-def run_lightning(args: list[str]) -> LightningCLI:
-    """Run ``LightningCLI`` on ``args`` (e.g. ``["fit", "--config", "run.yaml"]``)."""
+def run_lightning(args: list[str], prog: str = "torchpaml") -> LightningCLI:
+    """Run ``LightningCLI`` on ``args`` (e.g. ``["fit", "--config", "run.yaml"]``); the process's own
+    arguments are left for ``LightningCLI`` to read itself."""
     return LightningCLI(
         HybridSystem,
         ExperimentDataModule,
         subclass_mode_model=True,
         trainer_defaults=trainer_defaults(),
         save_config_kwargs={"overwrite": True},
-        args=args,
+        parser_kwargs={"prog": prog},
+        args=None if args == sys.argv[1:] else args,
     )
