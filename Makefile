@@ -2,11 +2,14 @@
 PYTHON ?= python3
 DEMO ?= results/demo
 
-.PHONY: install demo paper test test-all bench contrast silverbox tanks discovery
+.PHONY: install install-docs demo paper test test-all docs tables bench contrast silverbox tanks discovery
 
 install:
 	# torch==2.13.0 first: a CPU build; a bare `torch` requirement would pull a multi-GB CUDA build.
 	$(PYTHON) -m pip install -q torch==2.13.0 -e ".[test]"
+
+install-docs: install
+	$(PYTHON) -m pip install -q -e ".[docs]"
 
 # The end-to-end diagnosis: measurements of an oscillator with an effect that `diagnose` is not told about.
 demo: install
@@ -29,6 +32,14 @@ test: install
 
 test-all: install
 	$(PYTHON) -m pytest -q -n 2; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
+
+# The documentation site, built strictly (broken links and missing references fail) into site/.
+docs: install-docs
+	NO_MKDOCS_2_WARNING=1 $(PYTHON) -m mkdocs build --strict --site-dir site
+
+# The docs' result tables, rewritten from the experiments' JSON under results/ (run the experiments first).
+tables: install
+	$(PYTHON) benchmarks/tables.py --results results --write docs/benchmarks.md docs/tutorials/*.md
 
 bench: install
 	$(PYTHON) benchmarks/bench_simulation.py

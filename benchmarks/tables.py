@@ -1,0 +1,114 @@
+"""The benchmarks page's result tables, regenerated from the experiments' JSON files.
+
+    python benchmarks/tables.py [--results results] [--write PAGE ...]
+
+Reads what the experiments wrote under ``--results`` (``demo/diagnosis.json``,
+``paper/results.json``, ``contrast/contrast.json``, ``discovery/discovery_cases.json``,
+``silverbox/silverbox.json``, ``cascaded_tanks/cascaded_tanks.json``) and prints one markdown table
+per file found. With ``--write PAGE ...`` it replaces, in each page, the text between
+``<!-- table:NAME -->`` and ``<!-- /table:NAME -->`` by the table NAME, and leaves the tables whose JSON
+is missing as they are. ``make tables`` writes every page of the docs that holds such markers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+from collections.abc import Callable
+from pathlib import Path
+
+from torchpaml._render.tables import paper_table
+
+
+def _pct(fraction: float | None) -> str:
+    return "—" if fraction is None else f"{100 * fraction:.2f}"
+
+
+def demo(d: dict) -> str:
+    lines = ["| model | added | training % | validation % |", "|---|---|---|---|"]
+    lines += [f"| {r['model']} | {r['added'] or '—'} | {_pct(r['nrmse_train'])} | {_pct(r['nrmse_validation'])} |"
+              for r in d["ladder"]]
+    return "\n".join(lines)
+
+
+def contrast(rows: list[dict]) -> str:
+    lines = ["| α | residual | scheme | input | ζ init | ζ̂ | training % | validation % |",
+             "|---|---|---|---|---|---|---|---|"]
+    lines += [f"| {r['alpha']:g} | {r['residual']} | {r['scheme']} | {r['input']} | {r['zeta_init']:.4f} | "
+              f"{r['zeta_hat']:.4f} | {_pct(r['mismatch_train'])} | {_pct(r['mismatch_validation'])} |" for r in rows]
+    return "\n".join(lines)
+
+
+def discovery(cases: dict) -> str:
+    lines = ["| case | truth | discovered | recommended | library best | validation % physics / library / neural / "
+             "discovered | floor % | s |", "|---|---|---|---|---|---|---|---|"]
+    for name, case in cases.items():
+        found = case["discovery"]
+        v = found["nrmse_validation"]
+        shares = " / ".join(_pct(v[k]) for k in ("physics", "library_best", "neural", "discovered"))
+        lines.append(f"| {name} | `{case['truth']}` | `{found['expression']}` | {'yes' if found['recommended'] else 'no'} "
+                     f"| {found['library_best']} | {shares} | {_pct(case['floor'])} | {case['seconds']:.0f} |")
+    return "\n".join(lines)
+
+
+def silverbox(s: dict) -> str:
+    tests = ("test_multisine", "test_arrow_no_extrapolation", "test_arrow_full")
+    lines = ["| model | test_multisine | arrow, no extrapolation | arrow, full |", "|---|---|---|---|"]
+    lines += [f"| {m['model']} | " + " | ".join(f"{m['rmse'][k]:.2f} mV ({100 * m['nrmse'][k]:.2f} %)" for k in tests)
+              + " |" for m in s["models"]]
+    return "\n".join(lines) + f"\n\nFound: {', '.join(s['found'])}; {s['seconds']:.0f} s."
+
+
+def tanks(t: dict) -> str:
+    lines = ["| model | test RMSE |", "|---|---|"]
+    lines += [f"| {m['model']} | {m['rmse']['test']:.3f} V |" for m in t["models"]]
+    return "\n".join(lines) + f"\n\nFound: {', '.join(t['found'])}; {t['seconds']:.0f} s."
+
+
+TABLES: dict[str, tuple[str, Callable]] = {
+    "demo": ("demo/diagnosis.json", demo),
+    "paper": ("paper/results.json", paper_table),
+    "contrast": ("contrast/contrast.json", contrast),
+    "discovery": ("discovery/discovery_cases.json", discovery),
+    "silverbox": ("silverbox/silverbox.json", silverbox),
+    "tanks": ("cascaded_tanks/cascaded_tanks.json", tanks),
+}
+
+
+def tables(results: Path) -> dict[str, str]:
+    """NAME -> markdown table, for every result file found under ``results``."""
+    found = {}
+    for name, (path, render) in TABLES.items():
+        if (results / path).is_file():
+            found[name] = render(json.loads((results / path).read_text()))
+    return found
+
+
+def write(page: Path, found: dict[str, str]) -> list[str]:
+    """Replace each marked table of ``page`` that ``found`` has; returns the names replaced."""
+    text, replaced = page.read_text(), []
+    for name, table in found.items():
+        pattern = re.compile(rf"(<!-- table:{name} -->\n)(?:.*?\n)?(<!-- /table:{name} -->)", re.S)
+        if pattern.search(text):
+            text = pattern.sub(lambda m, table=table: m.group(1) + table + "\n" + m.group(2), text)
+            replaced.append(name)
+    page.write_text(text)
+    return replaced
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--results", type=Path, default=Path("results"), help="the experiments' output folder")
+    parser.add_argument("--write", type=Path, nargs="+", default=[], help="pages whose marked tables are replaced")
+    args = parser.parse_args()
+    found = tables(args.results)
+    for page in args.write:
+        print(f"replaced in {page}: {', '.join(write(page, found)) or 'nothing'}")
+    if not args.write:
+        for name, table in found.items():
+            print(f"## {name}\n\n{table}\n")
+
+
+if __name__ == "__main__":
+    main()
