@@ -2,7 +2,7 @@
 PYTHON ?= python3
 DEMO ?= results/demo
 
-.PHONY: install install-docs demo paper test test-all docs tables bench contrast silverbox tanks discovery
+.PHONY: install install-docs install-fleet demo fleet paper test test-all docs tables bench contrast silverbox tanks discovery
 
 install:
 	# torch==2.13.0 first: a CPU build; a bare `torch` requirement would pull a multi-GB CUDA build.
@@ -10,6 +10,9 @@ install:
 
 install-docs: install
 	$(PYTHON) -m pip install -q -e ".[docs]"
+
+install-fleet: install
+	$(PYTHON) -m pip install -q -e ".[fleet]"
 
 # The end-to-end diagnosis: measurements of an oscillator with an effect that `diagnose` is not told about.
 demo: install
@@ -30,7 +33,7 @@ paper: install
 test: install
 	$(PYTHON) -m pytest -q -n 2 -m "not slow"; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
 
-test-all: install
+test-all: install-fleet
 	$(PYTHON) -m pytest -q -n 2; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
 
 # The documentation site, built strictly (broken links and missing references fail) into site/.
@@ -41,13 +44,19 @@ docs: install-docs
 tables: install
 	$(PYTHON) benchmarks/tables.py --results results --write docs/benchmarks.md docs/tutorials/*.md
 
-bench: install
+bench: install-fleet
 	$(PYTHON) benchmarks/bench_simulation.py
 	$(PYTHON) benchmarks/bench_reproduction.py
 	$(PYTHON) benchmarks/bench_ranking.py
+	$(PYTHON) benchmarks/bench_fleet.py
 
 contrast: install
 	$(PYTHON) experiments/contrast/run.py --out results/contrast
+
+# A simulated fleet of ten units, diagnosed on a local Ray (the fleet how-to's example).
+fleet: install-fleet
+	$(PYTHON) experiments/fleet/make_fleet.py --out results/fleet/units
+	$(PYTHON) -m torchpaml fleet --units results/fleet/units --physics oscillator --out results/fleet/out
 
 # Discovery of forces outside the library, on simulated records (the README's table).
 discovery: install

@@ -1,5 +1,6 @@
 """Bad input gets a clear error naming the problem and the fix; each one is pinned here."""
 
+import re
 import subprocess
 import sys
 
@@ -102,3 +103,26 @@ def test_cli_exits_non_zero_with_a_message(tmp_path):
         text=True,
     )
     assert result.returncode != 0 and "--seeds must be at least 1" in result.stderr
+
+
+@pytest.mark.parametrize("case, message", [
+    ("no_units_folder", "is not a folder; give a folder with one sub-folder per unit"),
+    ("empty_units_folder", "has no unit folders; put one folder per unit in it"),
+    ("unknown_physics", "unknown physics 'spring'"),
+    ("no_ray", "install the extra: pip install 'torchpaml\\[fleet\\]'"),
+])
+def test_fleet_refuses_bad_input_before_starting_ray(tmp_path, monkeypatch, capsys, case, message):
+    from torchpaml.cli import main
+
+    units = tmp_path / "units"
+    if case != "no_units_folder":
+        units.mkdir()
+    if case in ("unknown_physics", "no_ray"):
+        (units / "unit0").mkdir()
+    monkeypatch.setitem(sys.modules, "ray", None)  # Ray cannot be imported: nothing here may start it
+    monkeypatch.setattr(sys, "argv", ["torchpaml"])
+    physics = "spring" if case == "unknown_physics" else "oscillator"
+    with pytest.raises(SystemExit) as exit_:
+        main(["fleet", "--units", str(units), "--physics", physics, "--out", str(tmp_path / "out"), "--quiet"])
+    assert exit_.value.code == 2
+    assert re.search(f"torchpaml fleet: error: .*{message}", capsys.readouterr().err)

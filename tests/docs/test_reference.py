@@ -8,6 +8,7 @@ from pathlib import Path
 import torchpaml
 from torchpaml.cli.commands import parser
 from torchpaml.cli.diagnose import diagnose_command
+from torchpaml.cli.fleet import FLEET_ARGUMENTS
 
 ROOT = Path(__file__).resolve().parents[2]
 API = (ROOT / "docs" / "reference" / "api.md").read_text()
@@ -39,3 +40,8 @@ def test_the_readme_is_a_front_page_with_the_two_setup_commands():
     readme = (ROOT / "README.md").read_text()
     assert len(readme.splitlines()) <= 250
     assert "make demo" in readme and "make test" in readme
+
+
+def test_every_option_of_fleet_is_in_the_cli_reference():
+    fleet = CLI[CLI.index("## `torchpaml fleet`"):CLI.index("## `torchpaml simulate`")]
+    assert sorted(a for a in FLEET_ARGUMENTS if f"`--{a}`" not in fleet) == []

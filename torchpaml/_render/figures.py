@@ -28,6 +28,7 @@ if TYPE_CHECKING:
         ResidualAnalysis,
         ValidityMap,
     )
+    from torchpaml._diagnostics.spread import ParameterSpread
 
 __all__ = [
     "amplitude_figure",
@@ -35,6 +36,7 @@ __all__ = [
     "diagnosis_figures",
     "discovery_figure",
     "dominant_frequency",
+    "fleet_figure",
     "ladder_figure",
     "overlay_figure",
     "ranking_figure",
@@ -98,7 +100,8 @@ def spectrum_figure(t, residual, drive: float, harmonics: int = 15, title: str =
     for k in range(1, harmonics + 1):
         if k * drive <= top:
             ax.axvline(k * drive, color="tab:red" if k % 2 else "tab:blue", lw=0.8, ls="-" if k % 2 else "--")
-    ax.set(xlabel="ω [rad/s]", ylabel="|R(ω)|", title=title or f"residual spectrum, drive harmonics kω (ω = {drive:.3g})")
+    ax.set(xlabel="ω [rad/s]", ylabel="|R(ω)|",
+           title=title or f"residual spectrum, drive harmonics kω (ω = {drive:.3g})")
     return fig
 
 
@@ -111,7 +114,7 @@ def comparison_figure(comparison: Comparison, experiment: str | None = None) -> 
 
 
 def residual_analysis_figure(analysis: ResidualAnalysis) -> Figure:
-    """The two correlations of :func:`~torchpaml.residual_analysis` with their bounds shaded, as ``resid`` draws them."""
+    """The two correlations of :func:`~torchpaml.residual_analysis`, their bounds shaded, as ``resid`` draws them."""
     fig = Figure(figsize=(9, 5), tight_layout=True)
     top, bottom = fig.subplots(2, 1)
     for ax, lags, values, bound, title in (
@@ -223,8 +226,33 @@ def diagnosis_figures(diagnosis: Diagnosis) -> dict[str, Figure]:
         "residual_analysis": residual_analysis_figure(diagnosis.residuals),
         "error_by_amplitude": amplitude_figure(diagnosis.by_input, diagnosis.by_output),
         "ranking": ranking_figure(diagnosis.ranking),
-        "ladder": ladder_figure(diagnosis.ladder, None if diagnosis.discovery is None else diagnosis.discovery.discovered),
+        "ladder": ladder_figure(diagnosis.ladder,
+                                None if diagnosis.discovery is None else diagnosis.discovery.discovered),
     }
     if diagnosis.discovery is not None:
         figures["discovery"] = discovery_figure(diagnosis.discovery)
     return figures
+
+
+def fleet_figure(spreads: list[ParameterSpread]) -> Figure:
+    """Each parameter across a fleet: every unit's estimate ± 3 standard errors, the fleet's median, its reach
+    (median ± 3 robust spreads), and the units that stand out in red, by name."""
+    fig = Figure(figsize=(9, 2.6 * max(1, len(spreads))), layout="constrained")
+    axes = fig.subplots(max(1, len(spreads)), 1, squeeze=False)[:, 0]
+    for ax, spread in zip(axes, spreads, strict=False):
+        x = np.arange(len(spread.units))
+        out = np.array([u in spread.outliers for u in spread.units])
+        ax.axhspan(spread.median - 3 * spread.sigma, spread.median + 3 * spread.sigma, color="tab:blue", alpha=0.12,
+                   label="median ± 3 robust spreads")
+        ax.axhline(spread.median, color="tab:blue", lw=1.0)
+        ax.errorbar(x[~out], spread.values[~out], 3 * spread.stds[~out], fmt="o", color="black", ms=4, label="unit")
+        ax.errorbar(x[out], spread.values[out], 3 * spread.stds[out], fmt="o", color="tab:red", ms=5,
+                    label="stands out")
+        for i in np.flatnonzero(out):
+            ax.annotate(spread.units[i], (x[i], spread.values[i]), textcoords="offset points", xytext=(4, 4),
+                        color="tab:red", fontsize=8)
+        ax.set_xticks(x, spread.units, rotation=45, fontsize=7)
+        ax.set_ylabel(spread.name)
+    axes[0].legend(fontsize=7, loc="upper right")
+    fig.suptitle("fitted parameters across the fleet")
+    return fig

@@ -22,11 +22,12 @@ from pathlib import Path
 import yaml
 from torch.utils.tensorboard import SummaryWriter
 
-from torchpaml._diagnostics.diagnosis import Diagnosis
+from torchpaml._data import Experiment
+from torchpaml._diagnostics.diagnosis import Diagnosis, diagnose
 from torchpaml._render.figures import diagnosis_figures
 from torchpaml._render.schema import diagnosis_to_dict
 
-__all__ = ["write_report"]
+__all__ = ["diagnose_to_folder", "write_report"]
 
 
 def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
@@ -49,6 +50,20 @@ def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
                 f"# {discovery.expression}\n# add to `candidates:` of a `torchpaml diagnose --config` file\n"
                 + yaml.safe_dump([discovery.effect.to_config()], sort_keys=False))
     return path
+
+
+def diagnose_to_folder(physics, candidates: list, data: str | Path, validation: str | Path, out: str | Path, *,
+                       hold: str | None = None, **options) -> Diagnosis:
+    """Diagnose ``physics`` on the CSV records ``data`` and ``validation`` and write the report into ``out``.
+
+    The one pipeline of a unit's records: ``torchpaml diagnose`` and each task of ``torchpaml fleet``
+    run it. ``hold`` is how the input moved between samples (default: the files' metadata, else
+    ``"foh"``); ``options`` go to :func:`~torchpaml.diagnose`.
+    """
+    train, held_out = Experiment.from_csv(data, hold=hold), Experiment.from_csv(validation, hold=hold)
+    diagnosis = diagnose(physics, candidates, train, held_out, **options)
+    write_report(diagnosis, out)
+    return diagnosis
 
 
 def _tensorboard(diagnosis: Diagnosis, content: dict, figures: dict, folder: Path) -> None:

@@ -14,7 +14,8 @@ def comparison_table(comparison: Comparison) -> str:
     """The scores of :func:`~torchpaml.compare`: mismatch %, fit % and RMSE per experiment and model."""
     lines = ["| experiment | model | mismatch % | fit % | RMSE |", "|---|---|---|---|---|"]
     for r in comparison.rows:
-        lines.append(f"| {r['experiment']} | {r['model']} | {r['mismatch_pct']:.2f} | {r['fit_pct']:.2f} | {r['rmse']:.4g} |")
+        lines.append(f"| {r['experiment']} | {r['model']} | {r['mismatch_pct']:.2f} | {r['fit_pct']:.2f} "
+                     f"| {r['rmse']:.4g} |")
     return "\n".join(lines)
 
 

@@ -3,7 +3,8 @@
 - ``torchpaml fit|validate|test --config FILE.yaml`` trains through ``LightningCLI``
   (:mod:`torchpaml.cli.lightning`);
 - ``torchpaml diagnose`` finds the effect a physics model is missing (jsonargparse, ``--config`` too;
-  :mod:`torchpaml.cli.diagnose`);
+  :mod:`torchpaml.cli.diagnose`), and ``torchpaml fleet`` does it for every unit of a fleet, on Ray
+  (:mod:`torchpaml.cli.fleet`);
 - ``torchpaml simulate`` writes measurements of library physics plus effects, and ``torchpaml paper``
   reproduces the paper (argparse; :mod:`torchpaml.cli.commands`).
 
@@ -46,6 +47,10 @@ def _command(name: str) -> Callable[[list[str], str], object]:
         from torchpaml.cli.diagnose import run_diagnose
 
         return lambda argv, prog: run_diagnose(argv[1:], f"{prog} diagnose")
+    if name == "fleet":
+        from torchpaml.cli.fleet import run_fleet
+
+        return lambda argv, prog: run_fleet(argv[1:], f"{prog} fleet")
     from torchpaml.cli.commands import run_command
 
     return run_command
@@ -55,5 +60,5 @@ def main(argv: list[str] | None = None, prog: str = "torchpaml") -> None:
     """Entry point of the ``torchpaml`` console script (and of ``python -m torchpaml``)."""
     argv = sys.argv[1:] if argv is None else argv + sys.argv[1:]
     name = argv[0] if argv else ""
-    with user_errors_exit(f"{prog} {name}".strip() if name in (*LIGHTNING_COMMANDS, "diagnose") else prog):
+    with user_errors_exit(f"{prog} {name}".strip() if name in (*LIGHTNING_COMMANDS, "diagnose", "fleet") else prog):
         _command(name)(argv, prog)

@@ -13,6 +13,7 @@ DESCRIPTION = """Physics-augmented learning of input-driven dynamical systems.
 
 commands:
   diagnose   find the effect a physics model is missing (torchpaml diagnose --help)
+  fleet      diagnose every unit of a fleet on Ray, and see which ones changed (torchpaml fleet --help)
   simulate   write noisy measurements of library physics plus effects
   paper      reproduce the paper's numerical results
   fit, validate, test

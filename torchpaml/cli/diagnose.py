@@ -17,12 +17,12 @@ from typing import Literal
 
 from jsonargparse import ActionConfigFile, ArgumentParser
 
-from torchpaml._data import Experiment
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import EFFECTS, AbstractEffect
 from torchpaml._physics.registry import PHYSICS, parse_assignments
 
-__all__ = ["diagnose_command", "run_diagnose"]
+__all__ = ["check_options", "diagnose_command", "diagnose_parser", "normalise_arguments", "resolve_models",
+           "run_diagnose"]
 
 #: Repeatable flags, spelled ``--fix NAME=VALUE`` on the command line (jsonargparse appends with ``+``).
 REPEATED = {"--fix": "--fix+", "--effect": "--effects+"}
@@ -55,6 +55,21 @@ def _candidates(effects: list[str] | None, candidates: list[AbstractEffect] | No
     if not chosen:
         raise ValueError("no candidate effects: name library effects with --effect, or list `candidates:` in --config")
     return chosen
+
+
+def resolve_models(physics: str | AbstractPhysics, fix: list[str] | None, effects: list[str] | None,
+                   candidates: list[AbstractEffect] | None) -> tuple[AbstractPhysics, list[AbstractEffect]]:
+    """The physics (a library name or an object, ``fix`` applied) and the candidate effects, checked."""
+    return _physics(physics, fix), _candidates(effects, candidates)
+
+
+def check_options(shortlist: int, min_share: float) -> None:
+    """Refuse ranking options that cannot work, before any fit."""
+    if shortlist < 1:
+        raise ValueError(f"--shortlist must be at least 1 (how many best-scored candidates are refitted), "
+                         f"got {shortlist}")
+    if not 0 <= min_share < 1:
+        raise ValueError(f"--min_share is a share of the validation mismatch, in [0, 1); got {min_share}")
 
 
 def diagnose_command(
@@ -96,37 +111,42 @@ def diagnose_command(
         discover: also discover a force outside the library: a neural force in the ODE, then its
             closed form (``discovery.json``, ``discovered_effect.yaml``; linear second-order physics).
     """
-    from torchpaml._diagnostics.diagnosis import diagnose
-    from torchpaml._render.report import write_report
+    from torchpaml._render.report import diagnose_to_folder
     from torchpaml._render.tables import ranking_table
 
     if Path(out).is_file():
         raise ValueError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
-    if shortlist < 1:
-        raise ValueError(f"--shortlist must be at least 1 (how many best-scored candidates are refitted), got {shortlist}")
-    if not 0 <= min_share < 1:
-        raise ValueError(f"--min_share is a share of the validation mismatch, in [0, 1); got {min_share}")
-    model = _physics(physics, fix)
-    chosen = _candidates(effects, candidates)
-    train, held_out = Experiment.from_csv(data, hold=hold), Experiment.from_csv(validation, hold=hold)
-    diagnosis = diagnose(model, chosen, train, held_out, shortlist=shortlist, criterion=criterion,
-                         threshold=threshold, min_share=min_share, initial_state=initial_state, discover=discover)
-    path = write_report(diagnosis, out)
+    check_options(shortlist, min_share)
+    model, chosen = resolve_models(physics, fix, effects, candidates)
+    diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold, shortlist=shortlist,
+                                   criterion=criterion, threshold=threshold, min_share=min_share,
+                                   initial_state=initial_state, discover=discover)
+    path = Path(out) / "diagnosis.json"
     print(ranking_table(diagnosis.ranking))
     print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")
     return json.loads(path.read_text())
 
 
-def run_diagnose(argv: list[str], prog: str = "torchpaml diagnose") -> dict:
-    """Parse ``argv`` (after ``diagnose``) with jsonargparse, ``--config`` included, and run :func:`diagnose_command`."""
-    parser = ArgumentParser(prog=prog, description=__doc__)
-    parser.add_argument("--config", action=ActionConfigFile, help="YAML file with the arguments below")
-    parser.add_function_arguments(diagnose_command)
-    argv = [f"{a}=true" if a in SWITCHES and (i + 1 == len(argv) or argv[i + 1].startswith("--")) else a
+def normalise_arguments(argv: list[str], switches: tuple[str, ...] = SWITCHES) -> list[str]:
+    """``--fix NAME=VALUE`` and ``--effect NAME`` repeated, and ``switches`` alone, as jsonargparse reads them."""
+    argv = [f"{a}=true" if a in switches and (i + 1 == len(argv) or argv[i + 1].startswith("--")) else a
             for i, a in enumerate(argv)]
     argv = [REPEATED.get(a, a) for a in argv]
-    argv = [f"{REPEATED[a.partition('=')[0]]}={a.partition('=')[2]}" if a.partition("=")[0] in REPEATED else a
+    return [f"{REPEATED[a.partition('=')[0]]}={a.partition('=')[2]}" if a.partition("=")[0] in REPEATED else a
             for a in argv]
-    config = parser.instantiate(parser.parse_args(argv))
+
+
+def diagnose_parser(prog: str = "torchpaml diagnose", skip: set[str] | None = None) -> ArgumentParser:
+    """The parser of :func:`diagnose_command`'s arguments (``skip``: those left out), ``--config`` included."""
+    parser = ArgumentParser(prog=prog, description=__doc__)
+    parser.add_argument("--config", action=ActionConfigFile, help="YAML file with the arguments below")
+    parser.add_function_arguments(diagnose_command, skip=skip)
+    return parser
+
+
+def run_diagnose(argv: list[str], prog: str = "torchpaml diagnose") -> dict:
+    """Parse ``argv`` (after ``diagnose``) with jsonargparse, ``--config`` included, and run :func:`diagnose_command`."""
+    parser = diagnose_parser(prog)
+    config = parser.instantiate(parser.parse_args(normalise_arguments(argv)))
     del config["config"]
     return diagnose_command(**config)

@@ -1,0 +1,156 @@
+"""``torchpaml fleet``: diagnose many units of one design on Ray, and see which ones changed.
+
+``torchpaml fleet --units DIR --physics NAME --out OUT [--address ADDR] [--workers N]`` diagnoses every
+unit folder of ``DIR`` (each with ``train.csv`` and ``validation.csv``) as ``torchpaml diagnose``
+would, one Ray task per unit, and writes ``OUT/<unit>/`` (each unit's diagnosis), ``OUT/fleet.json``
+and ``OUT/fleet.html``. The diagnose options (``--fix``, ``--effect``, ``--shortlist``, ``--hold``,
+``--initial_state``, ``--discover``, ``--config`` ...) apply to every unit. Without ``--address`` a
+local Ray is started on ``--workers`` cores and stopped at the end; with it the command joins a
+running cluster. A rerun into the same ``OUT`` skips the units already diagnosed without error
+(``--force`` redoes them); Ctrl-C stops the workers and keeps the finished units.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+from torchpaml._errors import DataError
+from torchpaml.cli.diagnose import SWITCHES, check_options, diagnose_parser, normalise_arguments, resolve_models
+from torchpaml.cli.fleet_unit import diagnose_unit, finished
+
+__all__ = ["FLEET_FILE", "diagnose_fleet", "run_fleet"]
+
+FLEET_FILE = "fleet.json"
+#: The arguments of the fleet itself; every other argument is the diagnose command's, for every unit.
+FLEET_ARGUMENTS = ("units", "out", "address", "workers", "force", "quiet")
+
+
+def _ray():
+    try:
+        import ray
+    except ImportError:
+        raise ValueError("torchpaml fleet runs its units on Ray, which is not installed; install the extra: "
+                         "pip install 'torchpaml[fleet]'") from None
+    return ray
+
+
+def find_units(folder: Path) -> list[Path]:
+    """Every sub-folder of ``folder`` (hidden ones aside) is a unit, in name order."""
+    if not folder.is_dir():
+        raise DataError(f"--units {folder} is not a folder; give a folder with one sub-folder per unit, each holding "
+                        "train.csv and validation.csv")
+    units = sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith("."))
+    if not units:
+        raise DataError(f"--units {folder} has no unit folders; put one folder per unit in it, each holding "
+                        "train.csv and validation.csv")
+    return units
+
+
+def diagnose_fleet(units: Path, out: Path, options: dict, *, address: str | None = None, workers: int = 2,
+                   force: bool = False, progress: bool = True) -> dict:
+    """Diagnose every unit on Ray (module docstring); returns the content of ``fleet.json``.
+
+    Args:
+        units: the folder of unit folders.
+        out: the output folder.
+        options: the diagnose command's arguments as plain data (physics by name or ``class_path``).
+        address: a running Ray cluster to join; default a local Ray on ``workers`` cores.
+        workers: cores of the local Ray (each unit's task takes one).
+        force: diagnose every unit, also those already diagnosed into ``out``.
+        progress: show a progress bar over the units.
+    """
+    from tqdm import tqdm
+
+    folders = find_units(units)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = {} if force else {f.name: row for f in folders if (row := finished(out, f.name)) is not None}
+    skipped = sorted(rows)
+    todo = [f for f in folders if f.name not in rows]
+    ray = _ray()
+    start = time.perf_counter()
+    startup = 0.0
+    if todo:
+        ray.init(address=address, num_cpus=None if address else workers, include_dashboard=False,
+                 log_to_driver=False, logging_level=logging.ERROR)
+        startup = time.perf_counter() - start
+        workers = int(ray.cluster_resources().get("CPU", workers)) if address else workers
+        task = ray.remote(num_cpus=1)(diagnose_unit)
+        pending = {task.remote(str(f), str(out), options): f.name for f in todo}
+        bar = tqdm(total=len(folders), initial=len(rows), unit="unit", desc="fleet", disable=not progress)
+        failed = 0
+        try:
+            while pending:
+                (ready,), _ = ray.wait(list(pending), num_returns=1)
+                name = pending.pop(ready)
+                rows[name] = ray.get(ready)
+                failed += rows[name]["error"] is not None
+                bar.set_postfix(done=len(rows) - failed, failed=failed, left=len(pending))
+                bar.update()
+        except KeyboardInterrupt:
+            for ref in pending:
+                ray.cancel(ref, force=True)
+            raise
+        finally:
+            bar.close()
+            ray.shutdown()
+    fleet = {"schema_version": 1, "engine": "ray", "workers": workers, "seconds": time.perf_counter() - start,
+             "startup_seconds": startup, "skipped": skipped, "units": [rows[f.name] for f in folders]}
+    path = out / FLEET_FILE
+    path.with_suffix(".json.partial").write_text(json.dumps(fleet, indent=2))
+    os.replace(path.with_suffix(".json.partial"), path)
+    from torchpaml._render.fleet import write_fleet_report
+
+    write_fleet_report(fleet, out)
+    return fleet
+
+
+def fleet_parser(prog: str = "torchpaml fleet"):
+    """The diagnose command's parser without its records and output, plus the fleet's own arguments."""
+    parser = diagnose_parser(prog, skip={"data", "validation", "out"})
+    parser.description = __doc__
+    parser.add_argument("--units", required=True, help="folder with one sub-folder per unit, each holding train.csv "
+                                                       "and validation.csv")
+    parser.add_argument("--out", required=True, help="output folder: OUT/<unit>/, fleet.json, fleet.html")
+    parser.add_argument("--address", default=None, help="a running Ray cluster to join (e.g. HOST:6379); default "
+                                                        "a local Ray, started and stopped by the command")
+    parser.add_argument("--workers", type=int, default=2, help="cores of the local Ray, one unit each (default 2)")
+    parser.add_argument("--force", type=bool, default=False, help="diagnose again the units already in OUT")
+    parser.add_argument("--quiet", type=bool, default=False, help="no progress bar")
+    return parser
+
+
+def run_fleet(argv: list[str], prog: str = "torchpaml fleet") -> dict:
+    """Parse ``argv`` (after ``fleet``), check every option before any work, and run :func:`diagnose_fleet`."""
+    parser = fleet_parser(prog)
+    config = parser.parse_args(normalise_arguments(argv, (*SWITCHES, "--force", "--quiet")))
+    plain = yaml.safe_load(parser.dump(config))
+    plain.pop("config", None)
+    fleet = {name: plain.pop(name, None) for name in FLEET_ARGUMENTS}
+    checked = parser.instantiate(config)
+    check_options(checked.shortlist, checked.min_share)
+    resolve_models(checked.physics, checked.fix, checked.effects, checked.candidates)
+    if fleet["workers"] < 1:
+        raise ValueError(f"--workers must be at least 1, got {fleet['workers']}")
+    out = Path(fleet["out"])
+    if out.is_file():
+        raise ValueError(f"--out {out} is an existing file; name a folder for the fleet (it is created if missing)")
+    try:
+        result = diagnose_fleet(Path(fleet["units"]), out, plain, address=fleet["address"], workers=fleet["workers"],
+                                force=bool(fleet["force"]), progress=not fleet["quiet"])
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted; the finished units are kept in {out}: run the same command to resume",
+              file=sys.stderr)
+        raise SystemExit(130) from None
+    failed = [row["unit"] for row in result["units"] if row["error"] is not None]
+    changed = {row["unit"]: row["found"] for row in result["units"] if row["found"]}
+    print(f"{len(result['units'])} units in {result['seconds']:.0f} s ({len(result['skipped'])} already done); "
+          f"missing effects: {changed or 'none'}; failed: {failed or 'none'}")
+    print(f"wrote {out / FLEET_FILE}, {out / 'fleet.html'} and one folder per unit")
+    return result
