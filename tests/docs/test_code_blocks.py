@@ -2,7 +2,8 @@
 
 A page's ```python blocks run in order in one namespace, in a temporary folder, as a reader would
 paste them. A block right after the line ``<!-- skip -->`` is not run (it needs data that the tests
-do not have, or shows a fragment); a page that holds ``<!-- slow -->`` runs in the slow lane.
+do not have, or shows a fragment); a page that holds ``<!-- slow -->`` runs in the slow lane, and one
+that holds ``<!-- needs: MODULE -->`` is skipped where an optional MODULE is not installed.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+NEEDS = re.compile(r"<!-- needs: ([\w.]+) -->")
 FENCE = re.compile(r"(?P<before>[^\n]*)\n```python[^\n]*\n(?P<code>.*?)\n```", re.S)
 
 
@@ -30,10 +32,13 @@ def _param(page: Path):
 def test_the_collector_finds_blocks_and_honours_skip():
     text = "intro\n```python\na = 1\n```\n<!-- skip -->\n```python\nraise SystemExit\n```\n```bash\nls\n```\n"
     assert code_blocks(text) == ["a = 1"]
+    assert NEEDS.findall("<!-- slow -->\n<!-- needs: ray -->\ntext") == ["ray"]
 
 
 @pytest.mark.parametrize("page", [_param(p) for p in PAGES if code_blocks(p.read_text())])
 def test_code_blocks_run(page: Path, tmp_path, monkeypatch):
+    for module in NEEDS.findall(page.read_text()):
+        pytest.importorskip(module, reason=f"{page.name} needs the optional {module}")
     monkeypatch.chdir(tmp_path)
     namespace: dict = {"__name__": "__docs__"}
     for i, block in enumerate(code_blocks(page.read_text())):

@@ -159,7 +159,7 @@ def score_model(
     starts = [estimate_initial_state(physics, r) if initial_state == "estimate" else None for r in validation]
     outputs = []
     for record, x0 in zip(validation, starts, strict=True):
-        y_model = simulate_record(physics, record, x0)[0].detach()
+        y_model = simulate_record(physics, record, x0)[0]
         outputs.append(y_model)
         sse += float(torch.sum((record.y - y_model) ** 2))
         norm += float(torch.sum(record.y**2))
