@@ -41,6 +41,7 @@ from torchpaml._errors import DataError, DomainError, ResolutionError, Simulatio
 from torchpaml._fit import (
     PhysicsEstimate,
     ResidualEstimate,
+    SparseRegression,
     estimate_initial_state,
     fit_chebyshev_hammerstein,
     fit_neural_force,
@@ -69,7 +70,7 @@ from torchpaml._physics import (
     QuadraticDamping,
     QuadraticStiffness,
     SecondOrderPhysics,
-    candidate_terms,
+    TermLibrary,
     default_effects,
     state_vector,
 )
@@ -116,7 +117,8 @@ __all__ = [
     "EFFECTS",
     "PHYSICS",
     "build_model",
-    "candidate_terms",
+    "TermLibrary",
+    "SparseRegression",
     "default_effects",
     # parameters
     "Interval",

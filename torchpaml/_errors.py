@@ -1,6 +1,6 @@
 """Exceptions raised by torchpaml. Each message says what was received, what was expected, and the fix."""
 
-__all__ = ["DataError", "DomainError", "ResolutionError", "SimulationError"]
+__all__ = ["DataError", "DomainError", "PhysicsError", "ResolutionError", "SimulationError"]
 
 
 class DataError(ValueError):
@@ -17,3 +17,7 @@ class ResolutionError(SimulationError):
 
 class DomainError(ValueError):
     """An input outside the domain a model is defined on (e.g. |u| > alpha for a Chebyshev residual)."""
+
+
+class PhysicsError(ValueError):
+    """A user's physics that cannot be simulated as written: a method that raises, a wrong shape, NaN at the start."""

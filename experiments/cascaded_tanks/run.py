@@ -1,6 +1,6 @@
 r"""Cascaded tanks (measured): diagnose a user's linear two-tank physics with user-written effects.
 
-    python experiments/cascaded_tanks/run.py --out DIR [--data PATH]
+    python experiments/cascaded_tanks/run.py --out DIR [--data PATH] [--discover]
 
 The official split (``shared/data/cascaded_tanks/README.md``): ``estimation`` for training (its last
 :data:`VALIDATION_SHARE` held out inside it for validation), ``test`` for the test only. Both records
@@ -15,6 +15,9 @@ sample is used, not even the loader's 5-sample initialisation window.
    ``sqrt_outflow_upper``, ``sqrt_outflow_lower`` (Torricelli), ``upper_overflow`` (the upper tank
    spills above a rim) and ``sensor_clip`` (the level clips at 10 V), plus the library's ``output_saturation`` and ``dead_zone``, which apply to any physics.
 3. Every rung is scored on ``test``.
+4. With ``--discover``, the discovery alone on the linear ``TwoTanks`` (no user effects): which rates
+   the physics misses, in closed form (:func:`~torchpaml._diagnostics.discover_missing_force`), scored
+   on ``test`` as ``discovery {expression, terms, rmse {test}}``.
 
 Writes ``DIR/cascaded_tanks.json`` in the shape of ``silverbox.json``, with ``rmse: {"test": V}`` and
 ``nrmse: {"test": RMSE / std y}``, and the diagnosis folder ``DIR/diagnosis/``.
@@ -32,6 +35,7 @@ from tanks import SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow
 from torchpaml import (
     DeadZone,
     diagnose,
+    discovery_to_dict,
     diagnosis_to_dict,
     Experiment,
     OutputSaturation,
@@ -55,6 +59,8 @@ def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="output folder")
     parser.add_argument("--data", type=Path, default=DATA, help=f"the cascaded_tanks folder (default {DATA})")
+    parser.add_argument("--discover", action="store_true",
+                        help="also discover what the linear TwoTanks miss, without the user effects")
     args = parser.parse_args(argv)
     if not (args.data / "estimation.csv").is_file():
         parser.error(f"{args.data} has no estimation.csv; point --data at shared/data/cascaded_tanks")
@@ -77,6 +83,17 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"{step.name}: test RMSE {rmse:.3f} V", flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,
               "hybrid": diagnosis_to_dict(diagnosis)["hybrid"], "seconds": time.perf_counter() - start}
+    if args.discover:
+        found = diagnose(physics, [], train, validation, initial_state="estimate", discover=True).discovery
+        model = (found.discovered or found.physics)
+        error = (test.y - simulate_record(model.model, test, model.train_states[0])[0])[:, 0]
+        rmse = float(error.square().mean().sqrt())
+        content = discovery_to_dict(found)
+        result["discovery"] = {"expression": content["expression"], "terms": content["terms"],
+                               "recommended": content["recommended"], "reason": content["reason"],
+                               "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}}
+        print(f"discovered {found.expression}: test RMSE {rmse:.3f} V", flush=True)
+        result["seconds"] = time.perf_counter() - start
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "cascaded_tanks.json").write_text(json.dumps(result, indent=2))
     for ranking in diagnosis.ladder.rankings:

@@ -52,7 +52,7 @@ class ForceFactor(_Force):
 #: case -> (effect at its true strength, the term discovery should write, its coefficient in the force)
 OUTSIDE = {
     "cubic_damping": (lambda: CubicDamping(0.5), "v**3", -0.5),
-    "amplitude_damping": (lambda: AmplitudeDamping(1.0), "x**2*v", -1.0),
-    "electrostatic_softening": (lambda: ElectrostaticSoftening(0.8), "x*u**2", 0.8),
-    "force_factor": (lambda: ForceFactor(0.5), "x**2*u", -0.5),
+    "amplitude_damping": (lambda: AmplitudeDamping(1.0), "v*x**2", -1.0),
+    "electrostatic_softening": (lambda: ElectrostaticSoftening(0.8), "u**2*x", 0.8),
+    "force_factor": (lambda: ForceFactor(0.5), "u*x**2", -0.5),
 }

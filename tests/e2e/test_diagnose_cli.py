@@ -76,6 +76,27 @@ class Tank(AbstractPhysics):
 
     def output(self, x, u):
         return x
+
+
+class ScalarSpring(Spring):
+    """A mistake: the acceleration summed to one number."""
+
+    def acceleration(self, t, x, v, u):
+        return (self.g * u - self.c * v - self.k * x).sum()
+
+
+class RaisingSpring(Spring):
+    """A mistake: a name that does not exist."""
+
+    def acceleration(self, t, x, v, u):
+        return self.g * u - self.damping * v
+
+
+class NaNSpring(Spring):
+    """A mistake: a division by the position, which starts at 0."""
+
+    def acceleration(self, t, x, v, u):
+        return self.g * u - self.k * x**2 / x
 '''
 
 
@@ -191,7 +212,14 @@ def test_user_physics_and_user_effect_from_a_config(tmp_path):
     (["--shortlist", "-1"], None, "--shortlist must be at least 1"),
     (["--hold", "xoh"], None, "hold"),
     (["--data", "short.csv"], None, "has 3 samples, too few"),
-    (["--discover"], "physics: {class_path: user_model.Tank}", "discovery needs linear second-order physics"),
+    ([], "physics: {class_path: user_model.ScalarSpring}",
+     "ScalarSpring.acceleration returned shape (), expected (4,)"),
+    ([], "physics: {class_path: user_model.RaisingSpring}", "RaisingSpring.acceleration raised AttributeError"),
+    ([], "physics: {class_path: user_model.NaNSpring}", "NaNSpring.acceleration returned NaN or infinity at the "
+                                                        "starting parameters {'c': 1.0, 'k': 3.0, 'g': 1.0}"),
+    ([], "physics: {class_path: user_model.NoSuchSpring}", "config key 'physics': "),
+    ([], "physics: {class_path: user_model.Spring, init_args: {kk: 1.0}}",
+     "config key 'physics': Problem with given class_path 'user_model.Spring': Option 'kk' is not accepted"),
 ])
 def test_bad_input_exits_2_with_a_message(measured, tmp_path, monkeypatch, capsys, args, config, message):
     """In-process (the console script's ``main``), so that eleven runs do not pay eleven interpreter start-ups."""
@@ -212,3 +240,20 @@ def test_bad_input_exits_2_with_a_message(measured, tmp_path, monkeypatch, capsy
     captured = capsys.readouterr()
     assert exit_.value.code == 2, captured.out + captured.err
     assert message in captured.err
+    assert len(captured.err.strip().splitlines()) <= 3, captured.err
+
+
+def test_verbose_prints_the_traceback_of_an_error_in_the_users_physics(measured, tmp_path, monkeypatch, capsys):
+    (tmp_path / "user_model.py").write_text(USER_MODEL)
+    (tmp_path / "config.yaml").write_text("physics: {class_path: user_model.RaisingSpring}\n")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(sys, "argv", ["torchpaml", "diagnose", "--config", "config.yaml", "--data",
+                                      str(measured / "train.csv"), "--validation", str(measured / "val.csv"), "--out",
+                                      "out", "--verbose"])
+    with pytest.raises(SystemExit) as exit_:
+        main()
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2
+    assert "Traceback" in err and "self.damping" in err and err.strip().endswith(
+        "fix the method (--verbose prints the traceback)")

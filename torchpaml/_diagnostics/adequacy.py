@@ -7,9 +7,10 @@ record, and it also beats the physics on validation. The alarm goes off when eit
 - the hybrid's training mismatch stays above $\kappa$ (default 0.5) times the physics';
 - or its validation mismatch is no better than the physics'.
 The physics is then inadequate in this regime, and the hybrid's number must not be quoted as
-a model's accuracy. The exception is a physics whose residual is already white and uncorrelated
-with the input (``residual_white``, from :func:`~torchpaml._diagnostics.residual_analysis`): then
-there is no gap to close, only noise, and the verdict says that the physics is complete.
+a model's accuracy. The exception is a physics whose residual is noise (``residual_white``: by
+effect size uncorrelated with the input, :func:`~torchpaml._diagnostics.diagnose` decides it from
+:func:`~torchpaml._diagnostics.residual_analysis`; coloured sensor noise counts as noise): then
+there is no gap to close, and the verdict says that the physics is complete at that noise level.
 """
 
 from __future__ import annotations
@@ -42,8 +43,8 @@ def assess_adequacy(
     validation_ratio = None if physics_validation is None else hybrid_validation / physics_validation
     if residual_white:
         return Adequacy(False, train_ratio, validation_ratio, (
-            "physics complete at this noise level: its training residual is white and uncorrelated with the "
-            f"input, so the orthogonal residual has nothing to add ({100 * physics_train:.1f} % -> "
+            "physics complete at this noise level: its training residual is uncorrelated with the input (noise, "
+            f"white or coloured), so the orthogonal residual has nothing to add ({100 * physics_train:.1f} % -> "
             f"{100 * hybrid_train:.1f} % on training); use the physics alone"))
     reasons = []
     if train_ratio > closes:

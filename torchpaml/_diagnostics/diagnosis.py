@@ -10,12 +10,14 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    |u| and by |y| (:func:`~torchpaml._diagnostics.error_by_amplitude`);
 3. the **Chebyshev-Hammerstein residual** fitted on top of the first and of the last rung, with the
    inadequacy alarm (:func:`~torchpaml._diagnostics.assess_adequacy`): on wrong physics it cannot
-   close the gap and says so; on physics whose training residual is white (at most
-   :data:`WHITE_SHARE` of the correlation lags outside the 99 % bounds) it says that there is
-   nothing left to add;
-4. with ``discover=True``, the **discovery** of a force outside the library
-   (:func:`~torchpaml._diagnostics.discover_missing_force`: a neural force in the ODE, then its closed
-   form, ranked against the library's best effect). It is asked for, not automatic: it trains a
+   close the gap and says so; on physics whose training residual is noise by effect size (its
+   cross-correlation with the input below :data:`NOISE_CORRELATION` at all but :data:`WHITE_SHARE`
+   of the lags, coloured or not, whatever the record's length) it says that the physics is complete
+   at that noise level;
+4. with ``discover=True``, the **discovery** of a force or rate outside the library on the ladder's
+   last rung (:func:`~torchpaml._diagnostics.discover_missing_force`: a neural rate in the ODE, then its
+   closed form, ranked against the library's best remaining effect), so that it can find a second
+   effect on top of a first. It is asked for, not automatic: it trains a
    network through the simulator, so its cost grows with the record's length.
 """
 
@@ -28,7 +30,7 @@ import torch
 
 from torchpaml._data import Experiment
 from torchpaml._diagnostics.adequacy import Adequacy, assess_adequacy
-from torchpaml._diagnostics.discovery import Discovery, discover_missing_force, why_discovery_cannot_run
+from torchpaml._diagnostics.discovery import Discovery, discover_missing_force
 from torchpaml._diagnostics.ladder import Ladder, model_ladder
 from torchpaml._diagnostics.ranking import ModelScore, Ranking
 from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
@@ -38,14 +40,20 @@ from torchpaml._simulate.sensitivity import simulate_record
 from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters
+from torchpaml._physics.checks import check_physics
 from torchpaml._physics.effects import AbstractEffect
+from torchpaml._physics.terms import TermLibrary
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
 
 __all__ = ["Diagnosis", "HybridScore", "diagnose"]
 
-#: A residual counts as white when at most this share of its correlation lags leave the 99 % bounds
-#: (1 % would by chance; 5 % leaves room for a few, and a structured residual leaves most of them).
+#: A residual counts as noise when at most this share of its input cross-correlation lags exceed
+#: :data:`NOISE_CORRELATION` and the 99 % bound (5 % leaves room for a few; a missing effect exceeds most).
 WHITE_SHARE = 0.05
+#: The effect size below which an input cross-correlation is noise, whatever the record's length: the input
+#: then explains under 1 % of the residual's variance at that lag. A p-value alone would call any
+#: correlation significant on a long enough record, and coloured sensor noise is not a missing effect.
+NOISE_CORRELATION = 0.1
 
 
 @dataclass
@@ -110,7 +118,7 @@ class Diagnosis:
         if self.discovery is not None:
             judged = "recommended" if self.discovery.recommended else "not recommended"
             verdict += f" Discovered force: {self.discovery.expression} ({judged}: {self.discovery.reason})."
-        elif self.hybrids[-1].adequacy.inadequate and why_discovery_cannot_run(self.baseline.model) is None:
+        elif self.hybrids[-1].adequacy.inadequate:
             verdict += " To learn the form of what is missing, run the discovery (--discover, or discover=True)."
         return verdict
 
@@ -141,10 +149,10 @@ def _hybrid(step: ModelScore, train: list[Experiment], validation: list[Experime
         v_physics = torch.stack(step.validation_outputs)
         hybrid_validation = mismatch(v_y, v_physics + residual(v_t, v_u))
     whiteness = residual_analysis(u[0, :, 0], (y - y_physics)[0, :, 0])
-    white = (len(whiteness.autocorrelation_outside) <= WHITE_SHARE * len(whiteness.lags)
-             and len(whiteness.cross_correlation_outside) <= WHITE_SHARE * len(whiteness.cross_lags))
+    bound = max(whiteness.cross_correlation_bound, NOISE_CORRELATION)
+    noise = int((abs(whiteness.cross_correlation) > bound).sum()) <= WHITE_SHARE * len(whiteness.cross_lags)
     adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
-                               residual_white=white)
+                               residual_white=noise)
     return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy)
 
 
@@ -156,6 +164,7 @@ def diagnose(
     *,
     alpha: float | None = None,
     discover: bool = False,
+    terms: Sequence[str] = (),
     **ranking_options,
 ) -> Diagnosis:
     """Run the whole diagnosis (module docstring).
@@ -167,15 +176,16 @@ def diagnose(
         validation: the validation records.
         alpha: Chebyshev domain of the residual; default 1.05 max |u| over all records.
         discover: also discover a force outside the library (module docstring, step 4).
+        terms: the user's own terms for the discovery, sympy strings over the physics' variables
+            (:class:`~torchpaml._physics.TermLibrary`), e.g. ``["x**2*sign(v)"]``.
         ranking_options: forwarded to :func:`~torchpaml._diagnostics.rank_missing_effects`.
     """
     train = [train] if isinstance(train, Experiment) else list(train)
     validation = [validation] if isinstance(validation, Experiment) else list(validation)
-    if discover and (reason := why_discovery_cannot_run(physics)) is not None:  # checked before any fit
-        raise ValueError(reason)
     most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
                                                                  for c in candidates),
                                                 default=0)
+    check_physics(physics, train[0].t, train[0].u)  # before any fit
     for record in train + validation:  # checked before any fit
         if len(record.t) <= 2 * most:
             raise DataError(f"experiment {record.name!r} has {len(record.t)} samples, too few to fit up to {most} "
@@ -194,5 +204,6 @@ def diagnose(
     discovery = None
     if discover:
         shared = {k: v for k, v in ranking_options.items() if k in ("criterion", "threshold", "min_share", "initial_state")}
-        discovery = discover_missing_force(ladder.rankings[0], train, validation, **shared)
+        discovery = discover_missing_force(ladder.rankings[-1], train, validation,
+                                           library=TermLibrary(terms=tuple(terms)), **shared)
     return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation, discovery)

@@ -1,74 +1,84 @@
-r"""Discover a missing force that is not in the library: a neural force in the ODE, then a closed form.
+r"""Discover what is missing outside the library: a neural rate in the ODE, then a closed form.
 
-:func:`discover_missing_force` runs on the baseline of a ranking (the ladder's first rung), the
-physics alone at its fitted parameters $\hat\theta$ (linear second-order physics, $\ddot x = a_{\hat\theta}(x, v, u)$, $y = x$):
+:func:`discover_missing_force` runs on a ranking's baseline (the ladder's last rung): any physics at
+its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x, u)$.
 
-1. **Neural force** (a universal differential equation, :func:`~torchpaml._fit.fit_neural_force`):
-   $\ddot x = a_{\hat\theta} + \mathrm{MLP}(x, v, u)$, the physics held, fitted by output error.
-   Its trajectory gives the states $x_k, v_k$ that the records do not measure.
-2. **Closed form.** Along that trajectory every library term $\theta_i(x_k, v_k, u_k)$
-   (:func:`~torchpaml._physics.discovered.candidate_terms`) and every physics sensitivity
-   $\partial a/\partial\theta_j$ is passed through the physics' own force-to-output response
-   $\mathcal L = C(sI - A)^{-1}e_v$ (the exact LTI path), so that terms are compared by what they do
-   to the output, where the records can tell them apart (a force at frequencies the physics filters
-   out is invisible, whatever its size). The learned force, seen the same way, is
-   $\mathcal L[\mathrm{MLP}] = \hat y_{\text{neural}} - \hat y_{\text{physics}}$. What the physics'
-   own parameters can produce is projected out (the first-order incompatibility of Kuang & Lin), and
-   sparse regression (:func:`~torchpaml._fit.sparse_regression.select_support`: STLSQ, SINDy's method,
-   plus a forward path) picks the few terms of lowest BIC against the measured residual
-   $y - \hat y_{\text{physics}}$, with the learned force's STLSQ path among the proposals.
-   The regression sees the terms to first order (through the physics' linear response), so it may
-   keep a few small ones that only mop up the nonlinearity's own feedback.
-3. **Refit and rank.** The closed form becomes a :class:`~torchpaml._physics.DiscoveredForce`, refitted
-   by output error with the physics (:func:`~torchpaml._fit.fit_physics`: coefficients, the width of
-   a smoothed sign, and the physics' parameters). Terms whose share of the refitted force along the
-   trajectory is below :data:`PRUNE` are then dropped and the rest refitted, unless that costs more
-   than ``threshold`` of the criterion. The closed form is scored on the validation records like every
-   rung. It is **recommended** when it beats the physics by the ranking's rules (criterion gain above
-   ``threshold``, validation mismatch down by ``min_share``, training mismatch not worse) *and* beats
-   the best library effect's criterion by more than ``threshold``; otherwise the library effect,
-   which has a physical meaning and a name, is preferred. A closed form that does not beat the
-   physics means that nothing is missing: the expression is ``"0"``.
+1. **Neural rate** (a universal differential equation, :func:`~torchpaml._fit.fit_neural_force`):
+   $\dot x = f_{\hat\theta} + E\,\mathrm{MLP}(x, u)$, the physics held, fitted by output error. $E$ picks
+   the equations a term may enter (:func:`~torchpaml._physics.terms.variables_of`): the acceleration of
+   second-order physics, every state's rate otherwise. Its trajectory gives the states that the
+   records do not measure.
+2. **Closed form.** Along that trajectory every term $\theta_i$ of the library
+   (:class:`~torchpaml._physics.TermLibrary`) on every equation $e$ is passed through the physics'
+   tangent-linear response $\mathcal L_e$ along its own trajectory
+   (:func:`~torchpaml._simulate.response.forced_response`; exact for linear physics), so that terms
+   are compared by what they do to the output, where the records can tell them apart. The learned
+   rate, seen the same way, guides the search. What the physics' own parameters (and, when they are
+   estimated, the initial states) can produce, the columns of its output Jacobian, is projected out
+   (the first-order incompatibility of Kuang & Lin), and the sparse regression
+   (:class:`~torchpaml._fit.sparse_regression.SparseRegression`: STLSQ and a forward path, scored by
+   the extended BIC, which pays for the size of the search) picks the few terms that explain the
+   measured residual $y - \hat y_{\text{physics}}$.
+3. **Refit, with honest numbers.** The closed form becomes a :class:`~torchpaml._physics.DiscoveredForce`
+   refitted with the physics by output error (:func:`~torchpaml._fit.fit_physics`). A smoothed sign's
+   width $\varepsilon_s$ is bounded to what the record resolves (:func:`width_range`: from the typical
+   change of $s$ over one sample to its RMS). A width that ends at the lower edge is a sign, and the
+   term becomes ``sign(s)``; one that ends at the upper edge is linear, and $m\tanh(s/\varepsilon)$
+   becomes $m\,s$. Terms whose coefficient the records do not determine (a standard error that is not
+   finite: a term the physics already has) and terms below :data:`PRUNE` of the largest are dropped
+   and the rest refitted; a pruning that costs more than the threshold of the criterion is undone.
+4. **Judge.** The closed form is scored on the validation records like every rung and
+   **recommended** when it beats the physics by the ranking's rules and the best library effect's
+   criterion by more than the threshold; otherwise the library effect, which has a name, is
+   preferred. A closed form that does not beat the physics means that nothing is missing: the
+   expression is ``"0"``.
 """
 
 from __future__ import annotations
 
 import copy
+import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
 
+import sympy
 import torch
 
 from torchpaml._data import Experiment
-from torchpaml._diagnostics.ranking import EffectEvidence, ModelScore, Ranking, as_records, refit_effect, score_model
+from torchpaml._diagnostics.ranking import (REFIT_CRITERION_STEP, EffectEvidence, ModelScore, Ranking, _assigned,
+                                            as_records, refit_effect, score_model)
 from torchpaml._fit.neural_force import fit_neural_force
-from torchpaml._fit.sparse_regression import select_support
+from torchpaml._fit.sparse_regression import SparseRegression
+from torchpaml._fit.uncertainty import IdentifiabilityWarning
+from torchpaml._errors import SimulationError
 from torchpaml._metrics import mismatch
-from torchpaml._physics.base import SecondOrderPhysics
-from torchpaml._physics.discovered import DiscoveredForce, candidate_terms, evaluate_term
-from torchpaml._simulate.lti import simulate_lti
-from torchpaml._simulate.sensitivity import simulate_record
+from torchpaml._physics.discovered import DiscoveredForce
+from torchpaml._physics.terms import TermLibrary, compile_term, variables_of, width_symbol
+from torchpaml._simulate.response import forced_response
+from torchpaml._simulate.sensitivity import output_jacobian, simulate_record
 from torchpaml._simulate.shooting import simulate_rk4
-from torchpaml._simulate.simulator import uniform_step
 
-__all__ = ["Discovery", "discover_missing_force", "why_discovery_cannot_run"]
+__all__ = ["Discovery", "discover_missing_force", "width_range"]
 
-#: Width of the library's smoothed sign tanh(v/eps) in the regression (the Coulomb effect's); the refit frees it.
-SIGN_WIDTH = 0.01
-#: A term of the refitted closed form whose force is below this share of the largest term's is dropped.
+#: A term of the refitted closed form whose contribution is below this share of the largest term's is dropped.
 PRUNE = 0.05
-#: Relative central-difference step of the acceleration's parameter sensitivities.
+#: A width within this factor of an edge of its range has reached the edge (its limit replaces it).
+EDGE = 1.05
+#: Relative central-difference step of the physics' own sensitivities.
 STEP = 1e-6
+#: Largest standard error, relative to the coefficient, of a term that the records determine (a t-statistic of 1).
+DETERMINED = 1.0
 
 
 @dataclass
 class Discovery:
     """What :func:`discover_missing_force` found (module docstring); :func:`~torchpaml.discovery_to_dict` makes ``discovery.json``.
 
-    ``effect`` is the refitted closed form (``None`` when the regression kept no term); ``samples``
-    holds x, v, u, the learned force and the closed form's force (with the physics' correction)
-    along the first training record's neural trajectory, for :meth:`figure`.
+    ``effect`` is the refitted closed form (``None`` when nothing was kept); ``samples`` holds, along the
+    first training record's neural trajectory, each variable, and the learned rate and the closed form's
+    rate on the first equation, for :func:`~torchpaml.discovery_figure`.
     """
 
     physics: ModelScore
@@ -82,68 +92,103 @@ class Discovery:
     samples: dict[str, torch.Tensor] = field(repr=False)
 
     @property
-    def expression(self) -> str:
+    def expression(self) -> str | dict[str, str]:
         return "0" if self.effect is None else self.effect.expression()
 
 
-def _sensitivities(physics, names: list[str], x: torch.Tensor, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-    r"""$\partial a/\partial\theta_j$ at the samples, (samples, parameters), by central differences in $\theta_j$."""
-    t = torch.zeros_like(x)
-    columns = []
+def width_range(values: torch.Tensor) -> tuple[float, float]:
+    r"""The smoothed sign's widths that a record of ``values`` (samples,) resolves: from the median change over
+    one sample (a narrower sign is a sign at this sampling) to the RMS (a wider one is linear where the
+    values lie)."""
+    low = float(values.diff().abs().median())
+    high = float(values.square().mean().sqrt())
+    return max(low, 1e-9 * high, 1e-300), max(high, 2 * low, 1e-300)
+
+
+@dataclass
+class _Columns:
+    """The regression's data, records concatenated: the terms' responses (samples, columns), the learned rate's
+    (samples,), the measured residual (samples,), the physics' Jacobian (samples, p), the raw term values on the
+    first record's trajectory, and each sign variable's width range."""
+
+    responses: torch.Tensor
+    learned: torch.Tensor
+    measured: torch.Tensor
+    jacobian: torch.Tensor
+    samples: dict[str, torch.Tensor]
+    widths: dict[str, tuple[float, float]]
+
+
+def _columns(neural, physics, terms: list[str], equations: dict[str, int], variables: tuple[str, ...],
+             train: Sequence[Experiment], starts: Sequence[torch.Tensor], estimate: bool) -> _Columns:
+    """:class:`_Columns` along the neural model's trajectories (module docstring, step 2)."""
+    compiled = [compile_term(t, variables) for t in terms]
+    trajectories = []
+    with torch.no_grad():
+        for record, x0 in zip(train, starts, strict=True):
+            trajectories.append(simulate_rk4(neural, record.t - record.t[0], record.u[None], x0.reshape(1, -1),
+                                             hold=record.hold)[0])
+    mechanical = "acceleration" in equations
+    index = {"x": 0, "v": 1} if mechanical else {name: i for name, i in equations.items()}
+    signs = {w for c in compiled for w in c.widths}
+    by_width = {width_symbol(s): s for s in index}
+    widths = {w: width_range(torch.cat([x[:, index[by_width[w]]] for x in trajectories])) for w in signs}
+    names = physics.learnable_names()
+    parts: dict[str, list[torch.Tensor]] = {"responses": [], "learned": [], "measured": [], "jacobian": []}
+    samples: dict[str, torch.Tensor] = {}
+    n = physics.state_dim
+    for record, x0, states in zip(train, starts, trajectories, strict=True):
+        t, u = record.t - record.t[0], record.u[None]
+        values = {name: states[:, i] for name, i in index.items()}
+        values["u"] = record.u[:, 0]
+        values.update({w: torch.tensor(2 * low, dtype=states.dtype) for w, (low, _) in widths.items()})
+        rates = []
+        for equation, state in equations.items():
+            for term in compiled:
+                rate = torch.zeros(len(t), n, dtype=states.dtype)
+                rate[:, state] = term.evaluate(values)
+                rates.append(rate)
+        with torch.no_grad():
+            learned = neural.learned(states, record.u)
+        responses = forced_response(physics, t, u, x0.reshape(1, -1), torch.stack([*rates, learned]), record.hold)
+        parts["responses"].append(responses[:-1, :, 0].T)
+        parts["learned"].append(responses[-1, :, 0])
+        y, J = output_jacobian(physics, names[:1], t, u, x0.reshape(1, -1), initial_state=estimate,
+                               hold=record.hold) if estimate else (simulate_record(physics, record, x0), None)
+        own = _own_sensitivities(physics, names, states, record.u)  # (N, n + n_output, p)
+        own_responses = forced_response(physics, t, u, x0.reshape(1, -1), own[:, :n].movedim(-1, 0), record.hold)
+        columns = own_responses[:, :, 0].T + own[:, n, :]
+        if estimate:
+            columns = torch.cat([columns, J[0, :, 0, len(names[:1]):]], dim=1)  # the initial states' free responses
+        parts["measured"].append((record.y - y[0])[:, 0])
+        parts["jacobian"].append(columns)
+        if not samples:
+            first = next(iter(equations.values()))
+            samples = {**{v: values[v] for v in variables}, "learned": learned[:, first]}
+    return _Columns(*(torch.cat(parts[k]) for k in ("responses", "learned", "measured", "jacobian")), samples, widths)
+
+
+def _own_sensitivities(physics, names: list[str], states: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+    r"""$\partial f/\partial\theta_j$ and $\partial h/\partial\theta_j$ at the given states, (N, n_state + n_output, p),
+    by central differences in each physical parameter $\theta_j$: what the physics' own parameters can change,
+    evaluated on the same trajectory as the terms."""
+    t = torch.zeros(len(states), dtype=states.dtype)
     values = physics.physical_parameters()
+    columns = []
     with torch.no_grad():
         for name in names:
             step = STEP * max(1.0, abs(values[name]))
-            physics.assign(**{name: values[name] + step})
-            plus = physics.acceleration(t, x, v, u)
-            physics.assign(**{name: values[name] - step})
-            minus = physics.acceleration(t, x, v, u)
-            physics.assign(**{name: values[name]})
-            columns.append((plus - minus) / (2 * step))
-    return torch.stack(columns, dim=1) if columns else torch.zeros(len(x), 0, dtype=x.dtype)
-
-
-def _through_output(physics, record: Experiment, forces: torch.Tensor) -> torch.Tensor:
-    r"""Each column of ``forces`` (samples, k) applied as a force from rest and seen at the output: $\mathcal L[F]$."""
-    A, _, C, _ = (m.detach() for m in physics.state_space())
-    e_v = torch.tensor([[0.0], [1.0]], dtype=A.dtype)
-    responses = simulate_lti(A, e_v, C, torch.zeros(C.shape[0], 1, dtype=A.dtype), uniform_step(record.t),
-                             forces.T[:, :, None])
-    return responses[:, :, 0].T
-
-
-def _along_trajectories(neural, physics, names: list[str], terms: list[str], train: Sequence[Experiment],
-                        starts: Sequence[torch.Tensor]) -> tuple[torch.Tensor, ...]:
-    r"""Along the neural model's trajectories, records concatenated: $\mathcal L$ of the library terms
-    (samples, terms), of the sensitivities $\partial a/\partial\theta$ (samples, parameters) and of the learned
-    force (samples,); the measured residual $y - \hat y_{\text{physics}}$ (samples,); and the first record's
-    raw samples (x, v, u, learned, library, sensitivity) for the figure."""
-    parts: dict[str, list[torch.Tensor]] = {key: [] for key in ("library", "sensitivity", "learned", "measured")}
-    samples: dict[str, torch.Tensor] = {}
-    with torch.no_grad():
-        for record, x0 in zip(train, starts, strict=True):
-            states = simulate_rk4(neural, record.t - record.t[0], record.u[None], x0.reshape(1, -1),
-                                  hold=record.hold)[0]
-            x, v, u = states[:, 0], states[:, 1], record.u[:, 0]
-            raw = {"library": torch.stack([evaluate_term(term, x, v, u, SIGN_WIDTH) for term in terms], dim=1),
-                   "sensitivity": _sensitivities(physics, names, x, v, u), "learned": neural.force(x, v, u)[:, None]}
-            for key, value in raw.items():
-                parts[key].append(_through_output(physics, record, value))
-            parts["measured"].append((record.y - simulate_record(physics, record, x0)[0])[:, 0])
-            samples = samples or {"x": x, "v": v, "u": u, **raw, "learned": raw["learned"][:, 0]}
-    library, sensitivity, learned, measured = (torch.cat(parts[k]) for k in ("library", "sensitivity", "learned",
-                                                                               "measured"))
-    return library, sensitivity, learned[:, 0], measured, samples
-
-
-def why_discovery_cannot_run(physics) -> str | None:
-    """Why discovery does not apply to ``physics``, or ``None`` when it does (linear second-order physics)."""
-    if isinstance(physics, SecondOrderPhysics) and physics.state_space() is not None:
-        return None
-    return (f"discovery needs linear second-order physics (a SecondOrderPhysics with state_space()), got "
-            f"{getattr(physics, 'display_name', type(physics).__name__)}: the learned force is compared with the "
-            "library terms through the physics' own force-to-output response. Diagnose the linear part, or add "
-            "effects from the library")
+            ends = []
+            value = values[name]
+            points = next(p for p in ((value + step, value - step), (value + step, value), (value + 2 * step, value + step))
+                          if _assigned(physics, name, p[1]))  # one-sided at a constraint's edge
+            for point in points:
+                physics.assign(**{name: point})
+                ends.append(torch.cat([physics.derivative(t, states, u), physics.output(states, u)], dim=-1))
+            _assigned(physics, name, value)
+            columns.append((ends[0] - ends[1]) / (points[0] - points[1]))
+    width = physics.state_dim + physics.output_dim
+    return torch.stack(columns, dim=-1) if columns else torch.zeros(len(states), width, 0, dtype=states.dtype)
 
 
 def discover_missing_force(
@@ -155,98 +200,189 @@ def discover_missing_force(
     threshold: float = 10.0,
     min_share: float = 0.05,
     initial_state: Literal["rest", "estimate"] = "rest",
-    max_terms: int = 4,
+    library: TermLibrary | None = None,
+    regression: SparseRegression | None = None,
     max_iter: int = 60,
     max_nfev: int = 40,
     seed: int = 0,
 ) -> Discovery:
-    """Discover the force missing from the ladder's physics (module docstring).
+    """Discover the force or rate missing from the ranking's physics (module docstring).
 
     Args:
-        ranking: the library's ranking on the physics (:func:`~torchpaml._diagnostics.rank_missing_effects`,
-            the ladder's first): its baseline is the fitted physics, its best refitted physical entry the
-            library's best effect.
+        ranking: a ranking (:func:`~torchpaml._diagnostics.rank_missing_effects`; the ladder's last): its
+            baseline is the fitted physics to extend, its best refitted physical entry the library's best effect.
         train: the training record(s) the ranking was made on.
         validation: the validation record(s) the ranking was made on.
         criterion: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
         threshold: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
         min_share: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
         initial_state: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
-        max_terms: most terms in the closed form.
-        max_iter: L-BFGS iterations of the neural force.
+        library: the terms to regress on (default :class:`~torchpaml._physics.TermLibrary`: products of degree
+            up to 3, sign-like products, square roots).
+        regression: the sparse regression (default :class:`~torchpaml._fit.sparse_regression.SparseRegression`:
+            at most 4 terms).
+        max_iter: L-BFGS iterations of the neural rate.
         max_nfev: iteration limit of the closed form's refit.
         seed: seed of the network's initial weights.
     """
     train, validation = as_records(train), as_records(validation)
+    library, regression = library or TermLibrary(), regression or SparseRegression()
     baseline = ranking.baseline
     physics = baseline.model
-    reason = why_discovery_cannot_run(physics)
-    if reason is not None:
-        raise ValueError(reason)
-    for record in train:
-        uniform_step(record.t)  # the force-to-output response is the exact (uniform-grid) path
+    variables, equations = variables_of(physics)
+    terms = library.build(physics)
     neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed)
     with torch.no_grad():
         neural_validation = mismatch(torch.cat([r.y for r in validation]),
                                      torch.cat([simulate_record(neural.model, r, x0)[0]
                                                 for r, x0 in zip(validation, baseline.validation_states, strict=True)]))
-    terms = candidate_terms()
-    names = physics.learnable_names()
-    library, sensitivity, learned, measured, samples = _along_trajectories(neural.model, physics, names, terms, train,
-                                                                           baseline.train_states)
-    Q = torch.linalg.qr(sensitivity).Q if names else sensitivity
+    data = _columns(neural.model, physics, terms, equations, variables, train, baseline.train_states,
+                    initial_state == "estimate")
+    J = data.jacobian
+    Q = torch.linalg.qr(J / J.norm(dim=0).clamp_min(1e-300)).Q if J.shape[1] else J
 
     def projected(M: torch.Tensor) -> torch.Tensor:
         return M - Q @ (Q.T @ M)
 
-    columns = projected(library)
+    columns = projected(data.responses)
     norms = columns.norm(dim=0)
-    usable = [i for i in range(len(terms)) if norms[i] > 1e-6 * library[:, i].norm()]  # the rest the physics makes
-    support, _ = select_support(columns[:, usable] / norms[usable], projected(measured[:, None])[:, 0],
-                                [projected(learned[:, None])[:, 0]], max_terms)
+    pairs = [(e, t) for e in equations for t in terms]
+    usable = [i for i in range(len(pairs)) if norms[i] > 1e-3 * data.responses[:, i].norm()]  # the rest the physics makes
+    support = regression.select(columns[:, usable] / norms[usable], projected(data.measured[:, None])[:, 0],
+                                [projected(data.learned[:, None])[:, 0]])
     chosen = [usable[i] for i in support]
     library_best = next((e for e in ranking.entries if e.refit is not None and not e.unphysical), None)
-    physics_only = torch.linalg.lstsq(sensitivity, measured[:, None]).solution[:, 0] if names else torch.zeros(0)
+    samples = {**data.samples, "closed_form": torch.zeros_like(data.samples["learned"])}
     if not chosen:
-        samples["closed_form"] = samples["sensitivity"] @ physics_only
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
                          "the sparse regression kept no term: nothing is missing that the physics cannot make", samples)
-    joint = torch.linalg.lstsq(torch.cat([sensitivity, library[:, chosen]], dim=1), measured[:, None]).solution[:, 0]
-    correction, coefficients = joint[: len(names)], joint[len(names):]
-    samples["closed_form"] = samples["library"][:, chosen] @ coefficients + samples["sensitivity"] @ correction
-    discovered = _refit_and_prune(physics, [terms[i] for i in chosen], coefficients.tolist(),
-                                  samples["library"][:, chosen], train, validation, criterion, threshold, max_nfev,
-                                  initial_state)
+    start = torch.linalg.lstsq(torch.cat([J, data.responses[:, chosen]], dim=1),
+                               data.measured[:, None]).solution[J.shape[1]:, 0]
+    discovered = _refit(physics, [pairs[i] for i in chosen], start.tolist(), data.widths, train, validation, criterion,
+                        threshold, max_nfev, initial_state)
+    if discovered is None:
+        return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
+                         "no term of the closed form is determined by the records", samples)
     effect = discovered.model.effects["discovered"]
+    samples["closed_form"] = _closed_form_samples(effect, data.samples, variables, next(iter(equations)))
     missing, reason = _judge(baseline, library_best, discovered, threshold, min_share)
     if missing is None:  # the closed form does not improve on the physics: nothing is missing
-        samples["closed_form"] = samples["sensitivity"] @ physics_only
+        samples["closed_form"] = torch.zeros_like(samples["learned"])
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
                          f"the best closed form, {effect.expression()}, does not improve on the physics: {reason}", samples)
     return Discovery(baseline, library_best, neural.mismatch, neural_validation, effect, discovered, missing, reason,
                      samples)
 
 
-def _refit_and_prune(physics, terms: list[str], coefficients: list[float], values: torch.Tensor,
-                     train: Sequence[Experiment], validation: Sequence[Experiment], criterion: str, threshold: float,
-                     max_nfev: int, initial_state: str) -> ModelScore:
-    """``physics + DiscoveredForce(terms)`` refitted and scored; then without the terms whose force (``values``,
-    (samples, terms), times the refitted coefficient) is below :data:`PRUNE` of the largest, unless that costs
-    more than ``threshold`` of the criterion."""
+def _closed_form_samples(effect: DiscoveredForce, samples: dict[str, torch.Tensor], variables: tuple[str, ...],
+                         equation: str) -> torch.Tensor:
+    """The closed form's rate on ``equation`` at the figure's samples."""
+    values = {**{v: samples[v] for v in variables}, **{w: getattr(effect, w).detach() for w in effect.width_names}}
+    total = torch.zeros_like(samples["learned"])
+    for name, term, eq in zip(effect.parameter_names, effect.terms, effect.equations, strict=True):
+        if eq == equation:
+            total = total + float(getattr(effect, name).detach()) * compile_term(term, None).evaluate(values)
+    return total * float(effect.gain.detach())
 
-    def refit(kept: list[str], start: list[float]) -> ModelScore:
-        extended = copy.deepcopy(physics) + DiscoveredForce(kept, start, eps=SIGN_WIDTH)
-        estimate = refit_effect(extended, "discovered.gain", 1.0, train, max_nfev, initial_state)
+
+def _limit(term: str, width: str, variable: str, edge: str) -> str:
+    r"""``term`` with ``tanh(variable/width)`` replaced by its limit at the ``"low"`` edge (a sign, and
+    $s\,\mathrm{sign}(s) = |s|$) or the ``"high"`` edge (``variable/width``, the width then folded into the
+    coefficient)."""
+    s, w = sympy.Symbol(variable, real=True), sympy.Symbol(width, real=True)
+    expression = sympy.sympify(compile_term(term, None).text, locals={variable: s, width: w})
+    sign = sympy.tanh(s / w)
+    if edge == "high":
+        return str(expression.subs(sign, s))
+    power = expression.subs(sign, 1).as_powers_dict().get(s, 0)
+    return str(expression.subs(sign, sympy.Abs(s) / s if power >= 1 else sympy.sign(s)))
+
+
+def _refit(physics, pairs: list[tuple[str, str]], coefficients: list[float], widths: dict[str, tuple[float, float]],
+           train: Sequence[Experiment], validation: Sequence[Experiment], criterion: str, threshold: float,
+           max_nfev: int, initial_state: str) -> ModelScore | None:
+    """``physics + DiscoveredForce(pairs)`` refitted and scored, with honest numbers (module docstring, step 3);
+    ``None`` when no term survives."""
+    _, equations = variables_of(physics)
+    index = {"x": 0, "v": 1} if "acceleration" in equations else dict(equations)
+    owner = {width_symbol(s): s for s in index}
+
+    def refit(kept: list[tuple[str, str]], start: list[float]) -> ModelScore | None:
+        terms = [t for _, t in kept]
+        used = sorted({w for t in terms for w in compile_term(t, None).widths})
+        effect = DiscoveredForce(terms, start, [e for e, _ in kept],
+                                 widths={w: 2 * widths[w][0] for w in used})
+        extended = copy.deepcopy(physics) + effect
+        for w in used:
+            extended.bound(f"discovered.{w}", *widths[w])
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", IdentifiabilityWarning)
+                estimate = refit_effect(extended, "discovered.gain", 1.0, train, max_nfev, initial_state,
+                                        ftol=REFIT_CRITERION_STEP / sum(r.y.numel() for r in train))
+        except SimulationError:
+            return None
         return score_model(extended, estimate, validation, criterion, initial_state)
 
-    full = refit(terms, coefficients)
-    fitted = [c for _, c in full.model.effects["discovered"].terms_and_coefficients()]
-    sizes = (values * torch.tensor(fitted)).norm(dim=0).tolist()
-    kept = [(t, c) for t, c, size in zip(terms, fitted, sizes, strict=True) if size >= PRUNE * max(sizes)]
-    if len(kept) == len(terms):
-        return full
-    pruned = refit([t for t, _ in kept], [c for _, c in kept])
-    return pruned if pruned.criterion <= full.criterion + threshold else full
+    score = refit(pairs, coefficients)
+    for _ in range(8):  # each pass removes or replaces at least one term, or stops
+        if score is None:
+            return None
+        effect = score.model.effects["discovered"]
+        values = effect.values()
+        current = list(zip(effect.equations, effect.terms, strict=True))
+        starts = [values[n] for n in effect.parameter_names]
+        changed = False
+        for w in effect.width_names:  # a width at an edge of its range: its limit replaces it
+            low, high = widths[w]
+            edge = "low" if values[w] < EDGE * low else "high" if values[w] > high / EDGE else None
+            if edge is not None:
+                scale = 1.0 if edge == "low" else 1 / values[w]
+                for i, (e, t) in enumerate(current):
+                    if w in compile_term(t, None).widths:
+                        current[i] = (e, _limit(t, w, owner[w], edge))
+                        starts[i] *= scale
+                changed = True
+        relative = [score.uncertainty.get(f"discovered.{n}", math.inf) / max(abs(values[n]), 1e-300)
+                    for n in effect.parameter_names]
+        relative = [r if math.isfinite(r) else math.inf for r in relative]
+        sizes = _sizes(score, train)
+        worst = max(range(len(relative)), key=lambda i: (relative[i], -sizes[i]))
+        determined = [relative[i] < DETERMINED or i != worst for i in range(len(relative))]  # drop the worst only
+        keep = [i for i in range(len(current))
+                if determined[i] and sizes[i] >= PRUNE * max(sizes) and 1e-12 < abs(starts[i]) < 1e12]
+        merged: dict[tuple[str, str], float] = {}
+        for i in keep:  # a limit may turn two terms into one: their coefficients add
+            merged[current[i]] = merged.get(current[i], 0.0) + starts[i]
+        if not changed and len(merged) == len(current):
+            return score
+        if not merged:
+            return None
+        candidate = refit(list(merged), list(merged.values()))
+        if candidate is None:
+            return score if all(determined) else None
+        if all(determined) and not changed and candidate.criterion > score.criterion + threshold:
+            return score  # the pruning cost more than the threshold: the small terms stay
+        score = candidate
+    return score
+
+
+def _sizes(score: ModelScore, train: Sequence[Experiment]) -> list[float]:
+    """Each discovered term's contribution, $|g c_i|$ times the RMS of $\theta_i$, along the refitted model's first
+    training trajectory."""
+    model = score.model
+    effect = model.effects["discovered"]
+    record = train[0]
+    variables, equations = variables_of(model)
+    index = {"x": 0, "v": 1} if "acceleration" in equations else dict(equations)
+    with torch.no_grad():
+        states = simulate_rk4(model, record.t - record.t[0], record.u[None], score.train_states[0].reshape(1, -1),
+                              hold=record.hold)[0]
+        values = {**{name: states[:, i] for name, i in index.items()}, "u": record.u[:, 0],
+                  **{w: getattr(effect, w) for w in effect.width_names}}
+        return [abs(float(effect.gain * getattr(effect, name))) * float(compile_term(term, None).evaluate(values)
+                                                                         .square().mean().sqrt())
+                for name, term in zip(effect.parameter_names, effect.terms, strict=True)]
 
 
 def _judge(physics: ModelScore, library: EffectEvidence | None, discovered: ModelScore, threshold: float,

@@ -5,7 +5,7 @@ from torchpaml._fit.first_order import reestimate_shift
 from torchpaml._fit.neural_force import NeuralForceFit, fit_neural_force
 from torchpaml._fit.output_error import minimize_output_error
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
-from torchpaml._fit.sparse_regression import forward_selection, select_support, stlsq
+from torchpaml._fit.sparse_regression import SparseRegression, forward_selection, stlsq
 from torchpaml._fit.residual_fit import (
     ResidualEstimate,
     fit_chebyshev_hammerstein,
@@ -24,6 +24,6 @@ __all__ = [
     "fit_residual",
     "minimize_output_error",
     "reestimate_shift",
-    "select_support",
+    "SparseRegression",
     "stlsq",
 ]

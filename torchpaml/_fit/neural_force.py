@@ -1,14 +1,16 @@
-r"""A neural force inside the ODE, fitted by output error with the physics held: a universal differential equation.
+r"""A neural rate inside the ODE, fitted by output error with the physics held: a universal differential equation.
 
-$$ \ddot x = a_{\hat\theta}(t, x, v, u) + \mathrm{MLP}_w(x/s_x, v/s_v, u/s_u), \qquad
+$$ \dot x = f_{\hat\theta}(t, x, u) + E\,\mathrm{MLP}_w(x/s_x, u/s_u), \qquad
    \hat w = \arg\min_w \sum_{\text{records}} \|y - \hat y_w\|^2 / \|y\|^2 $$
 
-with $\hat\theta$ the physics-only estimates (fixed), $s_x, s_v$ the standard deviations of the
-physics' own states on the records and $s_u$ that of the input. The network
-(:class:`~torchpaml._residual.MLPForce`, its last layer at zero, so the fit starts from the physics) is
-simulated by the parallel RK4 engine, each record's Newton solve warm-started from the previous
-iterate's trajectory, and fitted by L-BFGS (:func:`~torchpaml._fit.output_error.minimize_output_error`).
-The hidden layers' initial weights come from ``seed``, so the fit is reproducible.
+with $\hat\theta$ the physics-only estimates (fixed), $E$ the columns of the equations the rate
+enters (the velocity's for second-order physics, where it is a force; every state's otherwise:
+:func:`~torchpaml._physics.terms.variables_of`), $s_x$ the standard deviations of the physics' own
+states on the records and $s_u$ that of the input. The network (:class:`~torchpaml._residual.mlp.MLPRate`,
+its last layer at zero, so the fit starts from the physics) is simulated by the parallel RK4 engine,
+each record's Newton solve warm-started from the previous iterate's trajectory, and fitted by L-BFGS
+(:func:`~torchpaml._fit.output_error.minimize_output_error`). The hidden layers' initial weights come
+from ``seed``, so the fit is reproducible.
 """
 
 from __future__ import annotations
@@ -21,8 +23,8 @@ import torch
 
 from torchpaml._data import Experiment
 from torchpaml._fit.output_error import minimize_output_error
-from torchpaml._physics.base import SecondOrderPhysics
-from torchpaml._residual.mlp import ForceAugmented, MLPForce
+from torchpaml._physics.terms import variables_of
+from torchpaml._residual.mlp import MLPRate, RateAugmented
 from torchpaml._simulate.shooting import simulate_rk4
 from torchpaml._simulate.simulator import simulate
 
@@ -33,17 +35,13 @@ __all__ = ["NeuralForceFit", "fit_neural_force"]
 class NeuralForceFit:
     """Result of :func:`fit_neural_force`: the universal differential equation and its training mismatch."""
 
-    model: ForceAugmented
+    model: RateAugmented
     mismatch: float
     iterations: int
 
-    @property
-    def force(self) -> MLPForce:
-        return self.model.force
-
 
 def fit_neural_force(
-    physics: SecondOrderPhysics,
+    physics,
     records: Sequence[Experiment],
     initial_states: Sequence[torch.Tensor] | None = None,
     *,
@@ -52,10 +50,10 @@ def fit_neural_force(
     max_iter: int = 60,
     seed: int = 0,
 ) -> NeuralForceFit:
-    """Fit a neural force on top of ``physics`` (not modified: a frozen copy is used) to ``records``.
+    """Fit a neural rate on top of ``physics`` (not modified: a frozen copy is used) to ``records``.
 
     Args:
-        physics: second-order physics, at its fitted parameters.
+        physics: any physics, at its fitted parameters.
         records: training records.
         initial_states: each record's initial state (n_state,); rest if omitted.
         hidden: width of each hidden tanh layer of the network.
@@ -65,6 +63,7 @@ def fit_neural_force(
     """
     frozen = copy.deepcopy(physics)
     frozen.set_learnable(*frozen.learnable_names(), learn=False)
+    _, equations = variables_of(frozen)
     starts = [frozen.initial_state(1) if x0 is None else x0.reshape(1, -1)
               for x0 in (initial_states or [None] * len(records))]
     grids = [(r.t - r.t[0], r.u[None], r.hold) for r in records]
@@ -72,11 +71,11 @@ def fit_neural_force(
         states = torch.cat([simulate_rk4(frozen, t, u, x0, hold=hold)[0]
                             for (t, u, hold), x0 in zip(grids, starts, strict=True)])
     inputs = torch.cat([r.u[:, 0] for r in records])
-    scales = [float(s.std()) or 1.0 for s in (states[:, 0], states[:, 1], inputs)]
+    scales = [float(s.std()) or 1.0 for s in (*states.T, inputs)]
     with torch.random.fork_rng():
         torch.manual_seed(seed)
-        force = MLPForce(hidden, depth, x_scale=scales[0], v_scale=scales[1], u_scale=scales[2])
-    model = ForceAugmented(frozen, force)
+        rate = MLPRate(scales, len(equations), hidden, depth)
+    model = RateAugmented(frozen, rate, list(equations.values()))
     warm = [{} for _ in records]
 
     def predict() -> torch.Tensor:
@@ -84,5 +83,5 @@ def fit_neural_force(
                           for (t, u, hold), x0, w in zip(grids, starts, warm, strict=True)])
 
     target = torch.cat([r.y.flatten() for r in records])
-    loss, iterations = minimize_output_error(predict, target, list(force.parameters()), max_iter=max_iter)
+    loss, iterations = minimize_output_error(predict, target, list(rate.parameters()), max_iter=max_iter)
     return NeuralForceFit(model, loss**0.5, iterations)

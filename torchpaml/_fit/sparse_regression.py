@@ -6,7 +6,7 @@ For $b \approx A\xi$ with the columns of $A$ (samples, terms) scaled to unit nor
   solve least squares on the active columns, drop those with $|\xi_i| < \lambda\|b\|$, repeat until
   the active set stops changing. With unit columns, $|\xi_i|$ is the size of the term's contribution.
 * :func:`forward_selection`: add, one at a time, the column that lowers the residual most.
-* :func:`select_support`: the candidate supports of both (STLSQ over a grid of $\lambda$ on each
+* :class:`SparseRegression` (:meth:`~SparseRegression.select`): the candidate supports of both (STLSQ over a grid of $\lambda$ on each
   target given, the forward path's prefixes), each with at most ``max_terms`` columns, scored
   against the *measured* target, whose residual is noise, by the extended BIC of Chen & Chen (2008),
   $\mathrm{EBIC} = n\ln(\mathrm{SSE}/n) + k\ln n + 2\ln\binom{p}{k}$ for $k$ of $p$ columns; the
@@ -22,10 +22,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import torch
 
-__all__ = ["forward_selection", "select_support", "stlsq"]
+__all__ = ["SparseRegression", "forward_selection", "stlsq"]
 
 #: Thresholds $\lambda$ (shares of $\|b\|$) that :func:`select_support` sweeps.
 THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.6, 0.8)
@@ -70,21 +71,30 @@ def extended_bic(sse: float, samples: int, terms: int, columns: int) -> float:
             + 2 * math.log(math.comb(columns, terms)))
 
 
-def select_support(A: torch.Tensor, measured: torch.Tensor, guides: Sequence[torch.Tensor] = (),
-                   max_terms: int = 4) -> tuple[list[int], torch.Tensor]:
-    """The support of lowest extended BIC against ``measured`` (module docstring) and its coefficients.
+@dataclass(frozen=True)
+class SparseRegression:
+    """The sparse regression of discovery (module docstring), a pluggable optimizer as PySINDy's.
 
     Args:
-        A: library columns of unit norm, (samples, terms).
-        measured: the target whose residual is noise (scores the supports), (samples,).
-        guides: further targets whose STLSQ paths propose supports (a denoised view of the same thing).
         max_terms: largest support considered.
+        thresholds: the STLSQ thresholds $\\lambda$ swept, as shares of $\\|b\\|$.
     """
-    supports = {tuple(s) for s in forward_selection(A, measured, max_terms)} | {()}
-    for target in (measured, *guides):
-        supports |= {tuple(stlsq(A, target, lam)) for lam in THRESHOLDS}
-    n = len(measured)
-    scored = [(extended_bic(_solve(A, measured, s)[1], n, len(s), A.shape[1]), s) for s in supports
-              if len(s) <= max_terms]
-    _, best = min(scored)
-    return list(best), _solve(A, measured, best)[0]
+
+    max_terms: int = 4
+    thresholds: tuple[float, ...] = THRESHOLDS
+
+    def select(self, A: torch.Tensor, measured: torch.Tensor, guides: Sequence[torch.Tensor] = ()) -> list[int]:
+        """The support of lowest extended BIC against ``measured`` (module docstring).
+
+        Args:
+            A: library columns of unit norm, (samples, terms).
+            measured: the target whose residual is noise (scores the supports), (samples,).
+            guides: further targets whose STLSQ paths propose supports (a denoised view of the same thing).
+        """
+        supports = {tuple(s) for s in forward_selection(A, measured, self.max_terms)} | {()}
+        for target in (measured, *guides):
+            supports |= {tuple(stlsq(A, target, lam)) for lam in self.thresholds}
+        n = len(measured)
+        scored = [(extended_bic(_solve(A, measured, s)[1], n, len(s), A.shape[1]), s) for s in supports
+                  if len(s) <= self.max_terms]
+        return list(min(scored)[1])

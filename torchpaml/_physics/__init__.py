@@ -2,7 +2,8 @@
 
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
 from torchpaml._physics.composed import ComposedModel, compose
-from torchpaml._physics.discovered import DiscoveredForce, candidate_terms
+from torchpaml._physics.discovered import DiscoveredForce
+from torchpaml._physics.terms import TermLibrary
 from torchpaml._physics.effects import (
     EFFECTS,
     AbstractEffect,
@@ -41,5 +42,5 @@ __all__ = [
     "OutputSaturation",
     "DeadZone",
     "DiscoveredForce",
-    "candidate_terms",
+    "TermLibrary",
 ]

@@ -1,17 +1,15 @@
-r"""A force found by discovery, as a first-class effect: $F = g \sum_i c_i\,\theta_i(x, v, u)$.
+r"""A force or rate found by discovery, as a first-class effect: $R_e = g \sum_{i:\,e_i = e} c_i\,\theta_i(z)$.
 
-Each term $\theta_i$ is a product of the factors ``x``, ``v``, ``u``, ``Abs(v)`` and ``tanh(v/eps)``
-(a smoothed sign of the velocity), each with an optional power ``**k``, written in that order and
-joined by ``*`` (sympy's spelling): ``"v**3"``, ``"x**2*u"``, ``"v*Abs(v)"``, ``"x*tanh(v/eps)"``;
-``"1"`` is the constant. :func:`candidate_terms` lists the library that discovery regresses on:
+Each term $\theta_i$ (a sympy string over the physics' variables $z$, :mod:`~torchpaml._physics.terms`)
+adds, times its coefficient $c_i$ and the gain $g$, to the rate of its equation $e_i$: the
+acceleration of second-order physics (variables ``x``, ``v``, ``u``), or a named state's equation of
+any other physics (variables its ``state_names`` and ``u``).
 
-* the monomials of x, v and u of degree 0 to 3 (20 terms);
-* $v|v|$ and $\tanh(v/\varepsilon)$, and their products with x, v and u (8 terms).
-
-Parameters: ``gain`` $g$ (the strength: at 0 the force is off; fixed at 1 unless asked), one
-coefficient ``c_<term>`` per term (``c_v3`` for ``v**3``, ``c_x2_u`` for ``x**2*u``, ``c_v_absv``
-for ``v*Abs(v)``, ``c_tanhv`` for ``tanh(v/eps)``) and, where a term has the smoothed sign, its
-width ``eps`` $\varepsilon$ (m/s, positive; learnable: the data sets the shape of the sign).
+Parameters: ``gain`` $g$ (the strength: at 0 the effect is off; fixed at 1 unless asked), one
+coefficient per term, ``c_<term>`` (``c_v3`` for ``v**3``, ``c_u_x2`` for ``u*x**2``,
+``c_tanh_v_eps`` for ``tanh(v/eps)``; ``c_<equation>_<term>`` on physics that is not second order),
+and one positive width per width symbol that the terms use (``eps`` in ``tanh(v/eps)``, m/s: the data
+sets the shape of the sign). :meth:`DiscoveredForce.expression` prints the force with the fitted numbers.
 
 In a config (``candidates:`` of ``torchpaml diagnose --config``, or anywhere jsonargparse builds an
 effect)::
@@ -22,135 +20,131 @@ effect)::
 
 from __future__ import annotations
 
-import itertools
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import torch
 
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effects import AbstractEffect
+from torchpaml._physics.terms import compile_term, variables_of
 
-__all__ = ["DiscoveredForce", "candidate_terms", "evaluate_term"]
+__all__ = ["DiscoveredForce"]
 
-_FACTOR = re.compile(r"(x|v|u|Abs\(v\)|tanh\(v/eps\))(?:\*\*([23]))?")
-_ORDER = ("x", "v", "u", "Abs(v)", "tanh(v/eps)")
-_SLUG = {"x": "x", "v": "v", "u": "u", "Abs(v)": "absv", "tanh(v/eps)": "tanhv"}
-
-
-def _factors(term: str) -> list[tuple[str, int]]:
-    """``"x**2*v"`` -> ``[("x", 2), ("v", 1)]``; ``"1"`` -> ``[]``; ``ValueError`` naming the grammar otherwise."""
-    if term == "1":
-        return []
-    factors, position = [], 0
-    while True:
-        match = _FACTOR.match(term, position)
-        if match is None:
-            break
-        factors.append((match.group(1), int(match.group(2) or 1)))
-        position = match.end()
-        if position == len(term):
-            return factors
-        if term[position] != "*":
-            break
-        position += 1
-    raise ValueError(f"term {term!r} is not a product of x, v, u, Abs(v), tanh(v/eps) with optional powers **2, **3 "
-                     "joined by '*' (e.g. 'x**2*v', 'v*Abs(v)', '1')")
+#: Variables of second-order physics: the column of the state (or of u) each is read from.
+_MECHANICAL = {"x": 0, "v": 1}
 
 
-def evaluate_term(term: str, x: torch.Tensor, v: torch.Tensor, u: torch.Tensor, eps) -> torch.Tensor:
-    """The term's value at x, v, u (same shape); ``eps`` is the width of ``tanh(v/eps)``."""
-    values = {"x": lambda: x, "v": lambda: v, "u": lambda: u, "Abs(v)": v.abs, "tanh(v/eps)": lambda: torch.tanh(v / eps)}
-    result = torch.ones_like(x)
-    for factor, power in _factors(term):
-        result = result * values[factor]() ** power
-    return result
-
-
-def candidate_terms() -> list[str]:
-    """The discovery library (module docstring), in a fixed order: 28 terms."""
-    monomials = ["1"]
-    for degree in (1, 2, 3):
-        for combo in itertools.combinations_with_replacement(("x", "v", "u"), degree):
-            monomials.append("*".join(f"{n}**{combo.count(n)}" if combo.count(n) > 1 else n
-                                      for n in ("x", "v", "u") if n in combo))
-    shaped = ["v*Abs(v)", "tanh(v/eps)"]
-    products = ["x*v*Abs(v)", "v**2*Abs(v)", "v*u*Abs(v)", "x*tanh(v/eps)", "v*tanh(v/eps)", "u*tanh(v/eps)"]
-    return monomials + shaped + products
-
-
-def _slug(term: str) -> str:
-    return "_".join(f"{_SLUG[f]}{p if p > 1 else ''}" for f, p in _factors(term)) or "1"
+def _slug(text: str) -> str:
+    """A parameter-name fragment of a term: ``"x**2*tanh(v/eps)"`` -> ``"x2_tanh_v_eps"``."""
+    return re.sub(r"_+", "_", re.sub(r"\W", "_", text.replace("**", ""))).strip("_") or "1"
 
 
 class DiscoveredForce(AbstractEffect):
-    r"""$F = g\sum_i c_i\,\theta_i(x, v, u)$ (module docstring); a force on second-order physics.
+    r"""$g\sum_i c_i\,\theta_i$ on each term's equation (module docstring).
 
     Args:
-        terms: the terms $\theta_i$, e.g. ``["v**3", "x**2*u"]``.
+        terms: the terms $\theta_i$, sympy strings, e.g. ``["v**3", "x**2*tanh(v/eps)"]``.
         coefficients: $c_i$, one per term (default 0).
-        eps: width of ``tanh(v/eps)`` (registered only when a term uses it).
+        equations: the equation of each term (default ``"acceleration"``: second-order physics);
+            a state name of other physics.
+        widths: the starting value of each width symbol the terms use, ``{"eps": 0.05}`` (default 0.01).
         gain: $g$, the strength.
-        learn: learnable parameters; default the coefficients and ``eps``.
+        learn: learnable parameters; default the coefficients and the widths.
+        eps: the width ``eps`` (shorthand for ``widths={"eps": ...}``).
     """
 
     name = "discovered"
 
-    def __init__(self, terms: Sequence[str] = (), coefficients: Sequence[float] | None = None, eps: float = 0.01,
-                 gain: float = 1.0, *, learn: Sequence[str] | None = None):
+    def __init__(self, terms: Sequence[str] = (), coefficients: Sequence[float] | None = None,
+                 equations: Sequence[str] | None = None, widths: Mapping[str, float] | None = None,
+                 gain: float = 1.0, *, learn: Sequence[str] | None = None, eps: float | None = None):
         super().__init__()
         terms = list(terms)
         coefficients = [0.0] * len(terms) if coefficients is None else [float(c) for c in coefficients]
-        if len(coefficients) != len(terms):
-            raise ValueError(f"DiscoveredForce needs one coefficient per term: {len(terms)} terms, "
-                             f"{len(coefficients)} coefficients")
-        if len(set(terms)) != len(terms):
-            raise ValueError(f"DiscoveredForce terms must be distinct, got {terms}")
-        order = {f: i for i, f in enumerate(_ORDER)}
-        for term in terms:
-            factors = _factors(term)
-            if [order[f] for f, _ in factors] != sorted({order[f] for f, _ in factors}):
-                raise ValueError(f"term {term!r}: write each factor once, in the order x, v, u, Abs(v), tanh(v/eps)")
-        self.terms = terms
-        self.parameter_names = [f"c_{_slug(t)}" for t in terms]
-        parameters = [PhysicalParameter("gain", gain, "-", Real(), "strength of the discovered force")]
-        parameters += [PhysicalParameter(n, c, "-", Real(), f"coefficient of {t}")
-                       for n, t, c in zip(self.parameter_names, terms, coefficients, strict=True)]
-        self.uses_sign = any("tanh" in t for t in terms)
-        if self.uses_sign:
-            parameters.append(PhysicalParameter("eps", eps, "m/s", Positive(), "smoothing velocity of tanh(v/eps)"))
-        default = [*self.parameter_names, *(["eps"] if self.uses_sign else [])]
+        equations = ["acceleration"] * len(terms) if equations is None else list(equations)
+        if not len(coefficients) == len(equations) == len(terms):
+            raise ValueError(f"DiscoveredForce needs one coefficient and one equation per term: {len(terms)} terms, "
+                             f"{len(coefficients)} coefficients, {len(equations)} equations")
+        self.equations = equations
+        mechanical = set(equations) <= {"acceleration"}
+        compiled = [compile_term(t, ("x", "v", "u") if mechanical else None) for t in terms]
+        self.terms = [c.text for c in compiled]
+        self._compiled = compiled
+        pairs = list(zip(self.equations, self.terms, strict=True))
+        if len(set(pairs)) != len(pairs):
+            raise ValueError(f"DiscoveredForce terms must be distinct within an equation, got {pairs}")
+        self.parameter_names = [f"c_{_slug(t)}" if mechanical else f"c_{e}_{_slug(t)}" for e, t in pairs]
+        starts = {**({"eps": eps} if eps is not None else {}), **dict(widths or {})}
+        self.width_names = sorted({w for c in compiled for w in c.widths})
+        parameters = [PhysicalParameter("gain", gain, "-", Real(), "strength of the discovered terms")]
+        parameters += [PhysicalParameter(n, c, "-", Real(), f"coefficient of {t} in the {e} equation")
+                       for n, t, c, e in zip(self.parameter_names, self.terms, coefficients, equations, strict=True)]
+        parameters += [PhysicalParameter(w, float(starts.get(w, 0.01)), "-", Positive(), "width of a smoothed sign")
+                       for w in self.width_names]
+        default = [*self.parameter_names, *self.width_names]
         register_parameters(self, parameters, default if learn is None else learn)
-        self.equation = "+ " + (" + ".join(f"{n}*{t}" for n, t in zip(self.parameter_names, terms, strict=True)) or "0")
+        self.equation = "+ " + (" + ".join(f"{n}*{t}" for n, t in zip(self.parameter_names, self.terms, strict=True))
+                                or "0")
 
-    def force(self, physics, x, v, u):
-        eps = self.eps if self.uses_sign else None
-        total = torch.zeros_like(x)
-        for name, term in zip(self.parameter_names, self.terms, strict=True):
-            total = total + getattr(self, name) * evaluate_term(term, x, v, u, eps)
-        return self.gain * total
+    def applies_to(self, physics) -> str | None:
+        variables, equations = variables_of(physics)
+        wrong = sorted({e for e in self.equations if e not in equations})
+        if wrong:
+            return (f"its terms add to the equation(s) {wrong}, but {physics.display_name}'s equations are "
+                    f"{list(equations)}")
+        unknown = sorted({n for c in self._compiled for n in re.findall(r"[A-Za-z_]\w*", c.text)}
+                         - {*variables, *self.width_names, "Abs", "sign", "sqrt", "tanh", "exp", "sin", "cos"})
+        if unknown:
+            return f"its terms use {unknown}, which are not variables of {physics.display_name} ({list(variables)})"
+        return None
 
-    def terms_and_coefficients(self) -> list[tuple[str, float]]:
-        """``[(term, g c_i)]`` with the fitted width written into ``tanh(v/...)``: the force in numbers."""
-        values = self.values()
-        eps = f"{values['eps']:.4g}" if self.uses_sign else "eps"
-        return [(t.replace("eps", eps), values["gain"] * values[n])
-                for n, t in zip(self.parameter_names, self.terms, strict=True)]
+    def rate(self, physics, x, u):
+        variables, equations = variables_of(physics)
+        if "acceleration" in equations:
+            values = {"x": x[..., 0], "v": x[..., 1]}
+        else:
+            values = {name: x[..., i] for name, i in equations.items()}
+        values["u"] = u[..., 0]
+        values.update({w: getattr(self, w) for w in self.width_names})
+        totals: dict[str, torch.Tensor] = {}
+        for name, equation, term in zip(self.parameter_names, self.equations, self._compiled, strict=True):
+            value = getattr(self, name) * term.evaluate(values)
+            totals[equation] = totals.get(equation, 0.0) + value
+        if "acceleration" in equations:
+            totals = {physics.state_names[1]: totals["acceleration"]} if totals else {}
+        return self.on_state(physics, x, {k: self.gain * v for k, v in totals.items()})
 
     def values(self) -> dict[str, float]:
         """Every parameter's value, ``{name: float}``."""
         return {name: float(getattr(self, name).detach()) for name in self._physical}
 
-    def expression(self) -> str:
-        """The force as one sympy-style string over x, v, u, e.g. ``"-0.4894*v**3"``; ``"0"`` without terms."""
-        parts = [f"{c:.4g}*{t}" if t != "1" else f"{c:.4g}" for t, c in self.terms_and_coefficients()]
-        return " + ".join(parts).replace("+ -", "- ") or "0"
+    def terms_and_coefficients(self) -> list[tuple[str, float, str]]:
+        """``[(term, g c_i, equation)]`` with the fitted widths written in: the terms in numbers."""
+        values = self.values()
+        rows = []
+        for name, term, equation in zip(self.parameter_names, self.terms, self.equations, strict=True):
+            for width in sorted(self.width_names, key=len, reverse=True):
+                term = re.sub(rf"\b{width}\b", f"{values[width]:.4g}", term)
+            rows.append((term, values["gain"] * values[name], equation))
+        return rows
+
+    def expression(self) -> str | dict[str, str]:
+        """The terms as one sympy-style string, e.g. ``"-0.4894*v**3"`` (``"0"`` without terms); on several
+        equations, ``{equation: string}``."""
+        by_equation: dict[str, list[str]] = {}
+        for term, c, equation in self.terms_and_coefficients():
+            by_equation.setdefault(equation, []).append(f"{c:.4g}*{term}" if term != "1" else f"{c:.4g}")
+        joined = {e: " + ".join(parts).replace("+ -", "- ") for e, parts in by_equation.items()}
+        if len(joined) > 1:
+            return joined
+        return next(iter(joined.values()), "0")
 
     def to_config(self) -> dict:
-        """``{"class_path", "init_args"}``: rebuilds this force (fitted values) in a config."""
+        """``{"class_path", "init_args"}``: rebuilds this effect (fitted values) in a config."""
         values = self.values()
         init = {"terms": list(self.terms), "coefficients": [values[n] for n in self.parameter_names],
-                "gain": values["gain"]}
-        if self.uses_sign:
-            init["eps"] = values["eps"]
+                "equations": list(self.equations), "gain": values["gain"]}
+        if self.width_names:
+            init["widths"] = {w: values[w] for w in self.width_names}
         return {"class_path": "torchpaml.DiscoveredForce", "init_args": init}

@@ -52,6 +52,17 @@ def hybrid_to_dict(hybrid: HybridScore) -> dict:
             "inadequate": hybrid.adequacy.inadequate, "message": hybrid.adequacy.message}
 
 
+def _terms(discovery: Discovery) -> list[dict]:
+    """``[{term, coefficient, std, equation}]``: each discovered term, its coefficient in the rate (gain included)
+    and that coefficient's standard error."""
+    if discovery.effect is None:
+        return []
+    effect, std = discovery.effect, discovery.discovered.uncertainty
+    gain = effect.values()["gain"]
+    return [{"term": term, "coefficient": c, "std": abs(gain) * std.get(f"discovered.{name}", math.inf), "equation": e}
+            for (term, c, e), name in zip(effect.terms_and_coefficients(), effect.parameter_names, strict=True)]
+
+
 def discovery_to_dict(discovery: Discovery) -> dict:
     """The content of ``discovery.json``."""
     library = None if discovery.library_best is None else discovery.library_best.refit
@@ -59,8 +70,7 @@ def discovery_to_dict(discovery: Discovery) -> dict:
     return {
         "schema_version": SCHEMA_VERSION,
         "expression": discovery.expression,
-        "terms": [] if discovery.effect is None else [{"term": t, "coefficient": c}
-                                                      for t, c in discovery.effect.terms_and_coefficients()],
+        "terms": _terms(discovery),
         "recommended": discovery.recommended,
         "nrmse_validation": {"physics": discovery.physics.nrmse_validation,
                              "library_best": None if library is None else library.nrmse_validation,

@@ -3,7 +3,9 @@ r"""The unconstrained baseline: multilayer perceptrons, a universal approximator
 * :class:`MLPResidual` (output-additive): $r_t = \mathrm{MLP}(u_{t-L+1..t}/s_u,\ \hat y_{t-L+1..t}/s_y)$,
   a NARX-style map of a window of $L$ past inputs and physics outputs (zeros before $t_0$: rest).
 * :class:`MLPForce` inside :class:`ForceAugmented` (state-augmenting, a universal differential
-  equation): $\ddot x = a_{\text{physics}}(t, x, \dot x, u) + \mathrm{MLP}(x/s_x, \dot x/s_v, u/s_u)$.
+  equation): $\ddot x = a_{\text{physics}}(t, x, \dot x, u) + \mathrm{MLP}(x/s_x, \dot x/s_v, u/s_u)$;
+  on any physics, :class:`MLPRate` inside :class:`RateAugmented`: $\dot x = f(t, x, u) + E\,\mathrm{MLP}(x/s_x, u/s_u)$,
+  a learned rate on chosen state equations (discovery's neural stage).
 
 Neither has any structural relation to the physics, which is the point of the contrast: nothing
 stops them from reproducing (and so replacing) the physics' own response.
@@ -14,10 +16,10 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from torchpaml._physics.base import SecondOrderPhysics
+from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
 from torchpaml._residual.base import AbstractResidual
 
-__all__ = ["MLPResidual", "MLPForce", "ForceAugmented", "mlp"]
+__all__ = ["MLPResidual", "MLPForce", "ForceAugmented", "MLPRate", "RateAugmented", "mlp"]
 
 
 def mlp(inputs: int, hidden: int, depth: int, outputs: int = 1) -> nn.Sequential:
@@ -95,6 +97,57 @@ class ForceAugmented(SecondOrderPhysics):
 
     def output(self, x, u):
         return self.physics.output(x, u)
+
+    def linear_base(self):
+        return self.physics.linear_base()
+
+
+class MLPRate(nn.Module):
+    r"""A learned rate $\mathrm{MLP}(z/s)$ of the variables $z = (x, u)$, (batch, n_state + 1) -> (batch, outputs).
+
+    ``scales`` $s$ (one per variable) make the inputs of order one. Starts at zero.
+    """
+
+    def __init__(self, scales: list[float], outputs: int, hidden: int = 32, depth: int = 2):
+        super().__init__()
+        self.register_buffer("scales", torch.tensor(scales, dtype=torch.float64))
+        self.net = mlp(len(scales), hidden, depth, outputs)
+
+    def forward(self, z):
+        return self.net(z / self.scales)
+
+
+class RateAugmented(AbstractPhysics):
+    r"""``physics`` with a learned rate on the state equations ``equations`` (indices):
+    $\dot x = f(t, x, u) + E\,\mathrm{MLP}(x, u_1)$, $E$ the columns of those states. Output map: the physics'.
+    """
+
+    def __init__(self, physics: AbstractPhysics, rate: MLPRate, equations: list[int]):
+        super().__init__()
+        self.physics, self.rate, self.equations = physics, rate, list(equations)
+        self.state_names, self.input_dim, self.output_dim = physics.state_names, physics.input_dim, physics.output_dim
+        self.substeps = physics.substeps
+
+    def derivative(self, t, x, u):
+        dx = self.physics.derivative(t, x, u)
+        extra = self.rate(torch.cat([x, u[..., :1]], dim=-1))
+        columns = [dx[..., i] for i in range(dx.shape[-1])]
+        for j, i in enumerate(self.equations):
+            columns[i] = columns[i] + extra[..., j]
+        return state_vector(columns)
+
+    def learned(self, x, u):
+        """The learned rate on every state equation, x (..., n_state), u (..., n_input) -> (..., n_state)."""
+        extra = self.rate(torch.cat([x, u[..., :1]], dim=-1))
+        full = torch.zeros_like(x)
+        full[..., self.equations] = extra
+        return full
+
+    def output(self, x, u):
+        return self.physics.output(x, u)
+
+    def initial_state(self, batch):
+        return self.physics.initial_state(batch)
 
     def linear_base(self):
         return self.physics.linear_base()

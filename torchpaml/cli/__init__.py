@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Callable
+import traceback
 from contextlib import contextmanager
 
 from torchpaml._errors import DataError, DomainError, SimulationError
@@ -29,11 +30,14 @@ LIGHTNING_COMMANDS = ("fit", "validate", "test")
 
 
 @contextmanager
-def user_errors_exit(prog: str):
-    """The error rule (module docstring): a user error becomes one line on stderr and exit status 2."""
+def user_errors_exit(prog: str, verbose: bool = False):
+    """The error rule (module docstring): a user error becomes one line on stderr and exit status 2; ``verbose``
+    prints the traceback of its cause (an exception raised in the user's own physics) first."""
     try:
         yield
     except USER_ERRORS as err:
+        if verbose and err.__cause__ is not None:
+            traceback.print_exception(err.__cause__, file=sys.stderr)
         print(f"{prog}: error: {err}", file=sys.stderr)
         raise SystemExit(2) from None
 
@@ -60,5 +64,6 @@ def main(argv: list[str] | None = None, prog: str = "torchpaml") -> None:
     """Entry point of the ``torchpaml`` console script (and of ``python -m torchpaml``)."""
     argv = sys.argv[1:] if argv is None else argv + sys.argv[1:]
     name = argv[0] if argv else ""
-    with user_errors_exit(f"{prog} {name}".strip() if name in (*LIGHTNING_COMMANDS, "diagnose", "fleet") else prog):
+    with user_errors_exit(f"{prog} {name}".strip() if name in (*LIGHTNING_COMMANDS, "diagnose", "fleet") else prog,
+                          verbose="--verbose" in argv):
         _command(name)(argv, prog)

@@ -12,22 +12,23 @@ same way. ``--discover`` adds the discovery of a force outside the library (``di
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Literal
 
-from jsonargparse import ActionConfigFile, ArgumentParser
+from jsonargparse import ActionConfigFile, ArgumentError, ArgumentParser
 
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import EFFECTS, AbstractEffect
 from torchpaml._physics.registry import PHYSICS, parse_assignments
 
-__all__ = ["check_options", "diagnose_command", "diagnose_parser", "normalise_arguments", "resolve_models",
+__all__ = ["check_options", "config_mistake", "diagnose_command", "diagnose_parser", "normalise_arguments", "resolve_models",
            "run_diagnose"]
 
 #: Repeatable flags, spelled ``--fix NAME=VALUE`` on the command line (jsonargparse appends with ``+``).
-REPEATED = {"--fix": "--fix+", "--effect": "--effects+"}
+REPEATED = {"--fix": "--fix+", "--effect": "--effects+", "--term": "--terms+"}
 #: Switches that may stand alone: ``--discover`` means ``--discover true``.
-SWITCHES = ("--discover",)
+SWITCHES = ("--discover", "--verbose")
 
 
 def _physics(physics: str | AbstractPhysics, fix: list[str] | None) -> AbstractPhysics:
@@ -87,6 +88,8 @@ def diagnose_command(
     initial_state: Literal["rest", "estimate"] = "rest",
     hold: Literal["foh", "zoh"] | None = None,
     discover: bool = False,
+    terms: list[str] | None = None,
+    verbose: bool = False,
 ) -> dict:
     """Diagnose ``physics`` on the records and write the report into ``out``; returns the ``diagnosis.json`` content.
 
@@ -108,8 +111,11 @@ def diagnose_command(
             fitted: with the parameters on training records, alone on validation records).
         hold: how the input moved between samples, ``foh`` (linearly) or ``zoh`` (held constant, as a
             DAC plays a sampled signal); default the CSV metadata's ``"hold"``, else ``foh``.
-        discover: also discover a force outside the library: a neural force in the ODE, then its
-            closed form (``discovery.json``, ``discovered_effect.yaml``; linear second-order physics).
+        discover: also discover a force or rate outside the library on the ladder's last rung: a neural
+            rate in the ODE, then its closed form (``discovery.json``, ``discovered_effect.yaml``; any physics).
+        terms: the discovery's own terms, sympy strings over the physics' variables (x, v, u for
+            second-order physics, else its state names and u), e.g. ``x**2*sign(v)`` (repeat ``--term``).
+        verbose: print the traceback of an error raised inside your physics (default: one line).
     """
     from torchpaml._render.report import diagnose_to_folder
     from torchpaml._render.tables import ranking_table
@@ -120,7 +126,7 @@ def diagnose_command(
     model, chosen = resolve_models(physics, fix, effects, candidates)
     diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold, shortlist=shortlist,
                                    criterion=criterion, threshold=threshold, min_share=min_share,
-                                   initial_state=initial_state, discover=discover)
+                                   initial_state=initial_state, discover=discover, terms=terms or ())
     path = Path(out) / "diagnosis.json"
     print(ranking_table(diagnosis.ranking))
     print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")
@@ -136,6 +142,20 @@ def normalise_arguments(argv: list[str], switches: tuple[str, ...] = SWITCHES) -
             for a in argv]
 
 
+def config_mistake(report: str) -> str:
+    """jsonargparse's report of a config mistake in one line: the key and the reason (the deepest error of a union)."""
+    key = re.search(r'[Kk]ey "([^"]+)"', report)
+    lines = [line.strip() for line in report.splitlines()]
+    errors = [line.removeprefix("- ") for line in lines if line.startswith("- ") and "Expected a <class" not in line]
+    reason = errors[-1] if errors else lines[0]
+    if reason.endswith(":"):  # its detail is on the next line
+        reason = f"{reason} {lines[lines.index(next(l for l in lines if l.endswith(reason))) + 1]}"
+    reason = re.sub(r"Expected a dot import path string: (\S+)", r"cannot import class_path \1; give module.Class of an "
+                    r"importable class, or a library name", reason)
+    where = f"config key {key.group(1)!r}: " if key else ""
+    return f"{where}{reason}"
+
+
 def diagnose_parser(prog: str = "torchpaml diagnose", skip: set[str] | None = None) -> ArgumentParser:
     """The parser of :func:`diagnose_command`'s arguments (``skip``: those left out), ``--config`` included."""
     parser = ArgumentParser(prog=prog, description=__doc__)
@@ -147,6 +167,10 @@ def diagnose_parser(prog: str = "torchpaml diagnose", skip: set[str] | None = No
 def run_diagnose(argv: list[str], prog: str = "torchpaml diagnose") -> dict:
     """Parse ``argv`` (after ``diagnose``) with jsonargparse, ``--config`` included, and run :func:`diagnose_command`."""
     parser = diagnose_parser(prog)
-    config = parser.instantiate(parser.parse_args(normalise_arguments(argv)))
+    parser.exit_on_error = False  # a config mistake is summarised in one line (config_mistake)
+    try:
+        config = parser.instantiate(parser.parse_args(normalise_arguments(argv)))
+    except ArgumentError as error:
+        raise ValueError(config_mistake(str(error))) from None
     del config["config"]
     return diagnose_command(**config)

@@ -1,0 +1,60 @@
+"""A user's physics checked at the door: each method evaluated once on a record's first samples, before any fit.
+
+:func:`check_physics` calls ``acceleration`` (second-order physics), ``derivative`` and ``output`` at
+the starting parameters, from the model's initial state, on the first :data:`SAMPLES` samples, and
+raises :class:`~torchpaml._errors.PhysicsError` in one line naming the class and the method:
+
+* an exception inside the method: its type and message (the original traceback is chained, and the
+  CLI prints it under ``--verbose``);
+* a result of the wrong shape: the shape returned and the shape expected;
+* NaN or infinity: the parameters it was evaluated at, instead of a simulation that "blew up" later.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import torch
+
+from torchpaml._errors import PhysicsError
+from torchpaml._physics.base import SecondOrderPhysics
+
+__all__ = ["check_physics"]
+
+#: Samples of the record the methods are evaluated on.
+SAMPLES = 4
+
+
+def _evaluate(name: str, method: str, call: Callable[[], torch.Tensor], expected: tuple[int, ...], meaning: str,
+              parameters: dict[str, float]) -> None:
+    try:
+        with torch.no_grad():
+            value = call()
+    except Exception as error:  # the user's code: any exception is reported as theirs
+        raise PhysicsError(f"{name}.{method} raised {type(error).__name__}: {error} (at the starting parameters, on "
+                           "the first samples); fix the method (--verbose prints the traceback)") from error
+    shape = tuple(value.shape) if torch.is_tensor(value) else type(value).__name__
+    if shape != expected:
+        raise PhysicsError(f"{name}.{method} returned shape {shape}, expected {expected} ({meaning}); return one value "
+                           "per row of the batch")
+    if not bool(torch.isfinite(value).all()):
+        raise PhysicsError(f"{name}.{method} returned NaN or infinity at the starting parameters "
+                           f"{ {k: float(f'{v:.4g}') for k, v in parameters.items()} } on the first samples; check "
+                           "the formula (a division by a state that starts at 0, a log or sqrt of a negative value)")
+
+
+def check_physics(physics, t: torch.Tensor, u: torch.Tensor) -> None:
+    """Evaluate ``physics``' methods once (module docstring) on t (time,), u (time, n_input); ``PhysicsError`` if
+    one fails."""
+    k = min(SAMPLES, len(t))
+    name, parameters = physics.display_name, physics.physical_parameters()
+    x, u, t = physics.initial_state(k).to(u), u[:k], t[:k]
+    n = physics.state_dim
+    base = getattr(physics, "base", physics)
+    if isinstance(base, SecondOrderPhysics) and base is physics:
+        _evaluate(name, "acceleration", lambda: physics.acceleration(t, x[:, 0], x[:, 1], u[:, 0]), (k,),
+                  "(batch,) from x, v, u of shape (batch,)", parameters)
+    _evaluate(name, "derivative", lambda: physics.derivative(t, x, u), (k, n),
+              "(batch, n_state) from x (batch, n_state)", parameters)
+    _evaluate(name, "output", lambda: physics.output(x, u), (k, physics.output_dim),
+              "(batch, n_output) from x (batch, n_state)", parameters)
