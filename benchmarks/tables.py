@@ -57,13 +57,21 @@ def silverbox(s: dict) -> str:
     lines = ["| model | test_multisine | arrow, no extrapolation | arrow, full |", "|---|---|---|---|"]
     lines += [f"| {m['model']} | " + " | ".join(f"{m['rmse'][k]:.2f} mV ({100 * m['nrmse'][k]:.2f} %)" for k in tests)
               + " |" for m in s["models"]]
-    return "\n".join(lines) + f"\n\nFound: {', '.join(s['found'])}; {s['seconds']:.0f} s."
+    found = s.get("discovery")
+    discovered = "" if found is None else (
+        f" Discovery alone on the linear physics (`--discover`): `{found['expression']}`, test_multisine "
+        f"{found['rmse'].get('test_multisine', float('nan')):.2f} mV.")
+    return "\n".join(lines) + f"\n\nFound: {', '.join(s['found'])}; {s['seconds']:.0f} s.{discovered}"
 
 
 def tanks(t: dict) -> str:
     lines = ["| model | test RMSE |", "|---|---|"]
     lines += [f"| {m['model']} | {m['rmse']['test']:.3f} V |" for m in t["models"]]
-    return "\n".join(lines) + f"\n\nFound: {', '.join(t['found'])}; {t['seconds']:.0f} s."
+    found = t.get("discovery")
+    discovered = "" if found is None else (
+        f" Discovery alone on the linear TwoTanks (`--discover`): `{found['expression']}`, test RMSE "
+        f"{found['rmse']['test']:.3f} V.")
+    return "\n".join(lines) + f"\n\nFound: {', '.join(t['found'])}; {t['seconds']:.0f} s.{discovered}"
 
 
 TABLES: dict[str, tuple[str, Callable]] = {

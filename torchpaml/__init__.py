@@ -13,6 +13,7 @@ import importlib
 from torchpaml._certificates import Certificate, incompatibility_certificates
 from torchpaml._data import Experiment, ExperimentSource, Files, Simulated
 from torchpaml._diagnostics import (
+    SelectionRule,
     Adequacy,
     AmplitudeBins,
     Comparison,
@@ -182,6 +183,7 @@ __all__ = [
     "assess_adequacy",
     "Adequacy",
     "rank_missing_effects",
+    "SelectionRule",
     "Ranking",
     "EffectEvidence",
     "ModelScore",

@@ -149,16 +149,15 @@ def test_the_contract_run_writes_json_figures_html_and_tensorboard(measured):
     series = [e.value for e in events.Scalars("ladder/nrmse_validation")]
     assert series == pytest.approx([step["nrmse_validation"] for step in ladder], rel=1e-6)
     assert {f"diagnose/{name}" for name in FIGURES} <= set(events.Tags()["images"])
-    # --discover: the closed form of the learned force is the library's v|v|, which is preferred to it
+    # --discover runs on the ladder's last rung, which lacks nothing: the closed form is "0"
     discovery = json.loads((out / "discovery.json").read_text())
     assert {"expression", "terms", "recommended", "nrmse_validation", "library_best"} <= set(discovery)
     assert set(discovery["nrmse_validation"]) == {"physics", "library_best", "neural", "discovered"}
-    assert discovery["expression"].endswith("*v*Abs(v)") and [t["term"] for t in discovery["terms"]] == ["v*Abs(v)"]
-    assert discovery["terms"][0]["coefficient"] == pytest.approx(-0.5, rel=0.1)
-    assert discovery["library_best"] == "quadratic_damping" and not discovery["recommended"]
+    assert discovery["expression"] == "0" and discovery["terms"] == [] and not discovery["recommended"], discovery
+    assert discovery["nrmse_validation"]["physics"] == pytest.approx(ladder[1]["nrmse_validation"], rel=1e-9)
     assert report["discovery"] == discovery
     assert (out / "figures" / "discovery.png").stat().st_size > 1000 and 'src="figures/discovery.png"' in html
-    assert "Discovery" in html and "v*Abs(v)" in (out / "discovered_effect.yaml").read_text()
+    assert "Discovery" in html and not (out / "discovered_effect.yaml").exists()
     assert report["schema_version"] == discovery["schema_version"] == 1
     spans = re.findall(r"`([^`]+)`", OUTPUTS_PAGE.read_text())
     documented = {word for span in spans for word in re.findall(r"\w+", span)}
@@ -197,6 +196,40 @@ def test_user_physics_and_user_effect_from_a_config(tmp_path):
     assert report["ranking"][0]["effect"] == "cubic_damping"
     assert report["ranking"][0]["parameters"]["cubic_damping.c3"] == pytest.approx(0.6, rel=0.15)
     assert [step["model"] for step in report["ladder"]] == ["Spring", "Spring + cubic_damping"]
+
+
+def test_discovery_alone_on_a_users_physics_from_a_config(tmp_path):
+    """``effects: []`` and ``discover: true`` on a user's Spring with a hidden cubic damping, with a user term."""
+    (tmp_path / "user_model.py").write_text(USER_MODEL)
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    script = textwrap.dedent("""
+        from user_model import Spring, CubicDamping
+        from torchpaml._data import Simulated
+        true = Spring(c=0.8, k=4.0, g=4.0, learn=()) + CubicDamping(0.6)
+        for signal, seed, name in (("pseudorandom", 0, "train.csv"), ("multisine", 1, "val.csv")):
+            Simulated(true, signal, 1.0, [seed], 30.0, 0.05, noise=0.02).experiments()[0].to_csv(name)
+    """)
+    subprocess.run([sys.executable, "-c", script], check=True, cwd=tmp_path, env=env, timeout=300)
+    (tmp_path / "config.yaml").write_text(textwrap.dedent("""
+        data: train.csv
+        validation: val.csv
+        out: out
+        physics: {class_path: user_model.Spring, init_args: {c: 0.5, k: 3.0, g: 2.0}}
+        effects: []
+        discover: true
+        terms: ["x**2*sign(v)"]
+    """))
+    done = run("--config", "config.yaml", cwd=tmp_path, env=env)
+    assert done.returncode == 0, done.stderr
+    discovery = json.loads((tmp_path / "out" / "discovery.json").read_text())
+    assert discovery["recommended"] and discovery["library_best"] is None, discovery
+    (term,) = discovery["terms"]
+    assert term["term"] == "v**3" and term["equation"] == "acceleration", discovery
+    assert term["coefficient"] == pytest.approx(-0.6, rel=0.1) and 0 < term["std"] < 0.1 * abs(term["coefficient"])
+    assert "v**3" in (tmp_path / "out" / "discovered_effect.yaml").read_text()
+    spans = re.findall(r"`([^`]+)`", OUTPUTS_PAGE.read_text())
+    documented = {word for span in spans for word in re.findall(r"\w+", span)}
+    assert sorted(field_names(discovery) - documented) == []
 
 
 @pytest.mark.parametrize("args, config, message", [

@@ -12,6 +12,7 @@ from torchpaml._diagnostics.ranking import (
     Ranking,
     rank_missing_effects,
 )
+from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.validity import (
     AmplitudeBins,
@@ -21,6 +22,7 @@ from torchpaml._diagnostics.validity import (
 )
 
 __all__ = [
+    "SelectionRule",
     "Adequacy",
     "AmplitudeBins",
     "Comparison",

@@ -108,16 +108,16 @@ class Diagnosis:
         else:
             best = next((e for e in self.ranking.entries if e.improvement is not None), None)
             detail = "" if best is None else (
-                f" (the best, {best.effect}, improves {self.ranking.criterion.upper()} by {best.improvement:.1f} and "
+                f" (the best, {best.effect}, improves {self.ranking.rule.criterion.upper()} by {best.improvement:.1f} and "
                 f"the validation mismatch by {100 * (1 - best.refit.nrmse_validation / base.nrmse_validation):.1f} %; "
-                f"needed: {self.ranking.threshold:g} and {100 * self.ranking.min_share:g} %"
+                f"needed: {self.ranking.rule.threshold:g} and {100 * self.ranking.rule.min_share:g} %"
                 + "".join(f"; unphysical: {note}" for note in best.unphysical) + ")")
             found = (f"no missing effect found among {len(self.ranking.entries)} candidates{detail}. Validation "
                      f"mismatch {100 * base.nrmse_validation:.2f} %.")
         verdict = f"{found} Chebyshev residual on the final model: {self.hybrids[-1].adequacy.message.rstrip('.')}."
         if self.discovery is not None:
             judged = "recommended" if self.discovery.recommended else "not recommended"
-            verdict += f" Discovered force: {self.discovery.expression} ({judged}: {self.discovery.reason})."
+            verdict += f" Discovered force: {self.discovery.text} ({judged}: {self.discovery.reason})."
         elif self.hybrids[-1].adequacy.inadequate:
             verdict += " To learn the form of what is missing, run the discovery (--discover, or discover=True)."
         return verdict
@@ -203,7 +203,5 @@ def diagnose(
     hybrids = [_hybrid(step, train, validation, alpha) for step in _distinct(base, ladder.final)]
     discovery = None
     if discover:
-        shared = {k: v for k, v in ranking_options.items() if k in ("criterion", "threshold", "min_share", "initial_state")}
-        discovery = discover_missing_force(ladder.rankings[-1], train, validation,
-                                           library=TermLibrary(terms=tuple(terms)), **shared)
+        discovery = discover_missing_force(ladder.rankings[-1], train, validation, library=TermLibrary(terms=tuple(terms)))
     return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation, discovery)

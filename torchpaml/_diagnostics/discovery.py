@@ -41,14 +41,14 @@ import math
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal
 
 import sympy
 import torch
 
 from torchpaml._data import Experiment
-from torchpaml._diagnostics.ranking import (REFIT_CRITERION_STEP, EffectEvidence, ModelScore, Ranking, _assigned,
-                                            as_records, refit_effect, score_model)
+from torchpaml._diagnostics.ranking import (REFIT_CRITERION_STEP, EffectEvidence, ModelScore, Ranking, as_records,
+                                            refit_effect, score_model)
+from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
 from torchpaml._fit.uncertainty import IdentifiabilityWarning
@@ -56,6 +56,7 @@ from torchpaml._errors import SimulationError
 from torchpaml._metrics import mismatch
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import TermLibrary, compile_term, variables_of, width_symbol
+from torchpaml._simulate.probes import assigned
 from torchpaml._simulate.response import forced_response
 from torchpaml._simulate.sensitivity import output_jacobian, simulate_record
 from torchpaml._simulate.shooting import simulate_rk4
@@ -94,6 +95,12 @@ class Discovery:
     @property
     def expression(self) -> str | dict[str, str]:
         return "0" if self.effect is None else self.effect.expression()
+
+    @property
+    def text(self) -> str:
+        """The expression on one line: ``"equation: expression; ..."`` for several equations."""
+        found = self.expression
+        return found if isinstance(found, str) else "; ".join(f"{k}: {v}" for k, v in found.items())
 
 
 def width_range(values: torch.Tensor) -> tuple[float, float]:
@@ -181,11 +188,11 @@ def _own_sensitivities(physics, names: list[str], states: torch.Tensor, u: torch
             ends = []
             value = values[name]
             points = next(p for p in ((value + step, value - step), (value + step, value), (value + 2 * step, value + step))
-                          if _assigned(physics, name, p[1]))  # one-sided at a constraint's edge
+                          if assigned(physics, name, p[1]))  # one-sided at a constraint's edge
             for point in points:
                 physics.assign(**{name: point})
                 ends.append(torch.cat([physics.derivative(t, states, u), physics.output(states, u)], dim=-1))
-            _assigned(physics, name, value)
+            assigned(physics, name, value)
             columns.append((ends[0] - ends[1]) / (points[0] - points[1]))
     width = physics.state_dim + physics.output_dim
     return torch.stack(columns, dim=-1) if columns else torch.zeros(len(states), width, 0, dtype=states.dtype)
@@ -196,10 +203,6 @@ def discover_missing_force(
     train: Experiment | Sequence[Experiment],
     validation: Experiment | Sequence[Experiment],
     *,
-    criterion: Literal["bic", "aic"] = "bic",
-    threshold: float = 10.0,
-    min_share: float = 0.05,
-    initial_state: Literal["rest", "estimate"] = "rest",
     library: TermLibrary | None = None,
     regression: SparseRegression | None = None,
     max_iter: int = 60,
@@ -210,13 +213,10 @@ def discover_missing_force(
 
     Args:
         ranking: a ranking (:func:`~torchpaml._diagnostics.rank_missing_effects`; the ladder's last): its
-            baseline is the fitted physics to extend, its best refitted physical entry the library's best effect.
+            baseline is the fitted physics to extend, its best refitted physical entry the library's best effect;
+            its ``rule`` judges the closed form, and its ``initial_state`` option applies.
         train: the training record(s) the ranking was made on.
         validation: the validation record(s) the ranking was made on.
-        criterion: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
-        threshold: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
-        min_share: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
-        initial_state: as in :func:`~torchpaml._diagnostics.rank_missing_effects`.
         library: the terms to regress on (default :class:`~torchpaml._physics.TermLibrary`: products of degree
             up to 3, sign-like products, square roots).
         regression: the sparse regression (default :class:`~torchpaml._fit.sparse_regression.SparseRegression`:
@@ -227,7 +227,7 @@ def discover_missing_force(
     """
     train, validation = as_records(train), as_records(validation)
     library, regression = library or TermLibrary(), regression or SparseRegression()
-    baseline = ranking.baseline
+    baseline, rule, initial_state = ranking.baseline, ranking.rule, ranking.initial_state
     physics = baseline.model
     variables, equations = variables_of(physics)
     terms = library.build(physics)
@@ -258,14 +258,14 @@ def discover_missing_force(
                          "the sparse regression kept no term: nothing is missing that the physics cannot make", samples)
     start = torch.linalg.lstsq(torch.cat([J, data.responses[:, chosen]], dim=1),
                                data.measured[:, None]).solution[J.shape[1]:, 0]
-    discovered = _refit(physics, [pairs[i] for i in chosen], start.tolist(), data.widths, train, validation, criterion,
-                        threshold, max_nfev, initial_state)
+    discovered = _refit(physics, [pairs[i] for i in chosen], start.tolist(), data.widths, train, validation, rule,
+                        max_nfev, initial_state)
     if discovered is None:
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
                          "no term of the closed form is determined by the records", samples)
     effect = discovered.model.effects["discovered"]
     samples["closed_form"] = _closed_form_samples(effect, data.samples, variables, next(iter(equations)))
-    missing, reason = _judge(baseline, library_best, discovered, threshold, min_share)
+    missing, reason = _judge(baseline, library_best, discovered, rule)
     if missing is None:  # the closed form does not improve on the physics: nothing is missing
         samples["closed_form"] = torch.zeros_like(samples["learned"])
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
@@ -299,7 +299,7 @@ def _limit(term: str, width: str, variable: str, edge: str) -> str:
 
 
 def _refit(physics, pairs: list[tuple[str, str]], coefficients: list[float], widths: dict[str, tuple[float, float]],
-           train: Sequence[Experiment], validation: Sequence[Experiment], criterion: str, threshold: float,
+           train: Sequence[Experiment], validation: Sequence[Experiment], rule: SelectionRule,
            max_nfev: int, initial_state: str) -> ModelScore | None:
     """``physics + DiscoveredForce(pairs)`` refitted and scored, with honest numbers (module docstring, step 3);
     ``None`` when no term survives."""
@@ -322,7 +322,7 @@ def _refit(physics, pairs: list[tuple[str, str]], coefficients: list[float], wid
                                         ftol=REFIT_CRITERION_STEP / sum(r.y.numel() for r in train))
         except SimulationError:
             return None
-        return score_model(extended, estimate, validation, criterion, initial_state)
+        return score_model(extended, estimate, validation, rule, initial_state)
 
     score = refit(pairs, coefficients)
     for _ in range(8):  # each pass removes or replaces at least one term, or stops
@@ -361,7 +361,7 @@ def _refit(physics, pairs: list[tuple[str, str]], coefficients: list[float], wid
         candidate = refit(list(merged), list(merged.values()))
         if candidate is None:
             return score if all(determined) else None
-        if all(determined) and not changed and candidate.criterion > score.criterion + threshold:
+        if all(determined) and not changed and candidate.criterion > score.criterion + rule.threshold:
             return score  # the pruning cost more than the threshold: the small terms stay
         score = candidate
     return score
@@ -385,21 +385,19 @@ def _sizes(score: ModelScore, train: Sequence[Experiment]) -> list[float]:
                 for name, term in zip(effect.parameter_names, effect.terms, strict=True)]
 
 
-def _judge(physics: ModelScore, library: EffectEvidence | None, discovered: ModelScore, threshold: float,
-           min_share: float) -> tuple[bool | None, str]:
-    """``(None, why)`` when the closed form does not improve on the physics; else whether it is recommended
-    over the best library effect, and why."""
+def _judge(physics: ModelScore, library: EffectEvidence | None, discovered: ModelScore, rule: SelectionRule
+           ) -> tuple[bool | None, str]:
+    """``(None, why)`` when ``rule`` does not accept the closed form over the physics; else whether it is
+    recommended over the best library effect (criterion lower by more than the threshold), and why."""
+    why = rule.why_not(physics, discovered)
+    if why is not None:
+        return None, why
     gain = physics.criterion - discovered.criterion
-    share = 1 - discovered.nrmse_validation / physics.nrmse_validation
-    if discovered.nrmse_train > physics.nrmse_train * (1 + 1e-6):
-        return None, "its refit ended above the physics' training mismatch (a failed optimisation)"
-    if gain <= threshold or share < min_share:
-        return None, (f"it changes the criterion by {gain:+.1f} (needed more than {threshold:g}) and the validation "
-                      f"mismatch by {100 * share:.1f} % (needed {100 * min_share:g} %)")
     if library is not None:
         margin = library.refit.criterion - discovered.criterion
-        if margin <= threshold:
+        if margin <= rule.threshold:
             return False, (f"the library effect {library.effect} explains the records as well (criterion "
-                           f"{margin:+.1f} against it, needed more than {threshold:g}): the named effect is preferred")
+                           f"{margin:+.1f} against it, needed more than {rule.threshold:g}): the named effect is "
+                           "preferred")
         return True, f"it beats the physics by {gain:.1f} and the best library effect ({library.effect}) by {margin:.1f}"
     return True, f"it beats the physics by {gain:.1f}; no library effect was refitted"

@@ -29,18 +29,13 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
    refit is kept when it lowers the criterion by more than ``threshold``: the data asks for another shape.
    A refit whose optimum fails the step check (:mod:`torchpaml._fit.resolution`: its output depends on
    the RK4 step beyond what substeps resolve) has no result; its evidence says why (``failure``).
-4. **Rank** by the information criterion on the validation records,
-   $\mathrm{BIC} = n \ln(\mathrm{SSE}/n) + k \ln n$ (or $\mathrm{AIC} = n\ln(\mathrm{SSE}/n) + 2k$), $k$ the
-   number of fitted parameters. The best candidate is *recommended* when
-   - it lowers the criterion below the baseline's by more than ``threshold`` (10: very strong
-     evidence on the Kass-Raftery scale);
-   - it lowers the validation mismatch by at least the share ``min_share`` (5 %): on a long record
-     whose residual is not white, a criterion gain alone accepts rungs that change nothing;
+4. **Rank** by the information criterion on the validation records (:class:`~torchpaml._diagnostics.SelectionRule`:
+   BIC or AIC). The best candidate is *recommended* when the rule accepts it over the baseline
+   (criterion lower by more than ``threshold``, validation mismatch lower by ``min_share``, training
+   mismatch not higher) and
    - its refitted parameters lie in their declared physical ranges (``physical`` of
      :class:`~torchpaml._parameters.PhysicalParameter`: a Coulomb level or a drag coefficient >= 0, a
-     share of sin x in [0, 1]). An unphysical refit is flagged in its evidence and passed over;
-   - its training mismatch is not above the baseline's: the extended model contains the baseline
-     (at strength 0), so a worse training fit is a failed optimisation, not evidence.
+     share of sin x in [0, 1]). An unphysical refit is flagged in its evidence and passed over.
    Candidates outside the shortlist follow, by score, without a refit.
 """
 
@@ -56,14 +51,13 @@ from typing import Literal
 import torch
 
 from torchpaml._data import Experiment
-from torchpaml._errors import DataError, ResolutionError, SimulationError
+from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._errors import ResolutionError, SimulationError
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import unphysical_values
-from torchpaml._simulate.lti import simulate_lti
 from torchpaml._simulate.sensitivity import raw_parameters, simulate_record
-from torchpaml._simulate.shooting import solve_rk4
-from torchpaml._simulate.simulator import checked_output, uniform_step
+from torchpaml._simulate.probes import Secant, TangentLinear, assigned
 from torchpaml._physics.effects import AbstractEffect
 
 __all__ = ["EffectEvidence", "ModelScore", "REFIT_CRITERION_STEP", "Ranking", "rank_missing_effects", "refit_effect",
@@ -119,24 +113,20 @@ class EffectEvidence:
 
 @dataclass
 class Ranking:
-    """The baseline and the candidates, best first (module docstring)."""
+    """The baseline and the candidates, best first (module docstring), and the rule and initial-state option they
+    were ranked by (discovery on this ranking uses both)."""
 
     baseline: ModelScore
     entries: list[EffectEvidence]
-    criterion: str
-    threshold: float
+    rule: SelectionRule = field(default_factory=SelectionRule)
     skipped: dict[str, str] = field(default_factory=dict)
-    min_share: float = 0.05
+    initial_state: Literal["rest", "estimate"] = "rest"
 
     @property
     def recommended(self) -> EffectEvidence | None:
-        """The best physical candidate if it passes ``threshold`` and ``min_share`` (module docstring), else ``None``."""
-        best = next((e for e in self.entries if e.refit is not None and not e.unphysical
-                     and e.refit.nrmse_train <= self.baseline.nrmse_train * (1 + 1e-6)), None)
-        if best is None or best.improvement is None or best.improvement <= self.threshold:
-            return None
-        share = 1 - best.refit.nrmse_validation / self.baseline.nrmse_validation
-        return best if share >= self.min_share else None
+        """The best physical refitted candidate if :attr:`rule` accepts it over the baseline, else ``None``."""
+        best = next((e for e in self.entries if e.refit is not None and not e.unphysical), None)
+        return best if best is not None and self.rule.accepts(self.baseline, best.refit) else None
 
 
 def as_records(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]:
@@ -147,10 +137,11 @@ def score_model(
     physics,
     fit: PhysicsEstimate,
     validation: Sequence[Experiment],
-    criterion: Literal["bic", "aic"] = "bic",
+    rule: SelectionRule | None = None,
     initial_state: Literal["rest", "estimate"] = "rest",
 ) -> ModelScore:
-    """The fitted ``physics``' mismatch on training (from ``fit``) and validation, and its criterion on validation.
+    """The fitted ``physics``' mismatch on training (from ``fit``) and validation, and ``rule``'s criterion on
+    validation.
 
     With ``initial_state="estimate"`` each validation record starts from the state that best explains
     it (:func:`~torchpaml._fit.estimate_initial_state`, the parameters fixed), as MATLAB's ``compare`` does.
@@ -164,120 +155,12 @@ def score_model(
         sse += float(torch.sum((record.y - y_model) ** 2))
         norm += float(torch.sum(record.y**2))
         n += record.y.numel()
-    k = len(fit.parameters)
-    penalty = k * torch.log(torch.tensor(float(n))).item() if criterion == "bic" else 2.0 * k
-    value = n * torch.log(torch.tensor(sse / n)).item() + penalty
+    value = (rule or SelectionRule()).value(sse, n, len(fit.parameters))
     equation = physics.equation() if hasattr(physics, "equation") else physics.display_name
     return ModelScore(physics.display_name, equation, physics.physical_parameters(), fit.mismatch,
                       (sse / norm) ** 0.5, value, physics, dict(fit.uncertainty.std), fit.uncertainty.warning,
                       fit.initial_states, [physics.initial_state(1)[0] if x0 is None else x0 for x0 in starts],
                       outputs)
-
-
-def _assigned(extended, name: str, value: float) -> bool:
-    """Set the strength ``name`` to ``value``; ``False`` (and unchanged) where its constraint forbids it."""
-    try:
-        extended.assign(**{name: value})
-    except ValueError:
-        return False
-    return True
-
-
-class TangentLinear:
-    r"""First-order outputs of ``base + effect`` around a *linear* base, by the exact LTI path.
-
-    With $\dot x = A x + B u + \Delta f_k(x, u)$ (the effect's change of the derivative: forces, rates
-    and input maps) and $y = h_k(x, u)$, the output's change to first order in the strength $k$ is the
-    base's own linear dynamics driven by $\Delta f_k$ along the baseline trajectory $x^0$, plus
-    $h_k(x^0) - h_0(x^0)$:
-
-    $$ \delta y = C\,(sI - A)^{-1}\, \Delta f_k(x^0, u) + h_k(x^0, u) - h_0(x^0, u). $$
-
-    The probes of one effect are one exact simulation (a filter) per record, with a row per strength.
-    """
-
-    def __init__(self, base, train: list[Experiment], initial_states: list[torch.Tensor]):
-        A, B, C, _ = (m.detach() for m in base.state_space())
-        n = A.shape[0]
-        self.base, self.A, self.C = base, A, C
-        self.records = []
-        with torch.no_grad():
-            for record, x0 in zip(train, initial_states, strict=True):
-                h = uniform_step(record.t)
-                u = record.u[None]
-                states = simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, B.shape[1], dtype=A.dtype), h, u,
-                                      x0.reshape(1, n), record.hold)
-                self.records.append((record.t - record.t[0], u, states, h, record.hold))
-
-    @classmethod
-    def of(cls, base, train: list[Experiment], initial_states: list[torch.Tensor]) -> TangentLinear | None:
-        """The tangent-linear model when ``base`` is linear physics on uniform records, else ``None``."""
-        if base.state_space() is None:
-            return None
-        try:
-            return cls(base, train, initial_states)
-        except DataError:
-            return None
-
-    def outputs(self, extended) -> torch.Tensor:
-        """The first-order outputs of ``extended`` (the base plus effects) on the training records, concatenated."""
-        return self._responses(extended, [{}])[0]
-
-    def probes(self, extended, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
-        """The first-order outputs with the strength ``name`` at each of ``values`` (``None`` where its constraint
-        forbids the value), one filter run per record for all of them."""
-        allowed = [value for value in values if _assigned(extended, name, value)]
-        responses = iter(self._responses(extended, [{name: value} for value in allowed]))
-        return [next(responses) if value in allowed else None for value in values]
-
-    def _responses(self, extended, settings: list[dict[str, float]]) -> list[torch.Tensor]:
-        """The first-order outputs of ``extended`` with each of ``settings`` assigned, one filter row each."""
-        n = self.A.shape[0]
-        parts = []
-        with torch.no_grad():
-            for t, u, states, h, hold in self.records:
-                x, w = states[0], u[0]
-                extras, maps = [], []
-                for setting in settings:
-                    extended.assign(**setting)
-                    extras.append(extended.derivative(t, x, w) - self.base.derivative(t, x, w))
-                    maps.append(extended.output(states, u)[0])
-                response = simulate_lti(self.A, torch.eye(n, dtype=self.A.dtype), self.C,
-                                        torch.zeros(self.C.shape[0], n, dtype=self.A.dtype), h, torch.stack(extras),
-                                        hold=hold)
-                parts.append((response + torch.stack(maps)).flatten(1))
-        return list(torch.cat(parts, dim=1))
-
-
-class Secant:
-    """Outputs of ``base + effect`` near the base, by RK4 simulations warm-started from the base's trajectory.
-
-    For a nonlinear base (or non-uniform records), where :class:`TangentLinear` does not apply. A probe
-    at a small strength stays close to the base, so Newton, started from the base's converged states,
-    needs a sweep or two instead of the several of a cold start.
-    """
-
-    def __init__(self, base, train: list[Experiment], initial_states: list[torch.Tensor]):
-        self.records = []
-        with torch.no_grad():
-            for record, x0 in zip(train, initial_states, strict=True):
-                t, u, start, hold = record.t - record.t[0], record.u[None], x0.reshape(1, -1), record.hold
-                guess = solve_rk4(base, t, u, start, sensitivities=False, hold=hold).trajectory
-                self.records.append((t, u, start, hold, guess))
-
-    def outputs(self, extended) -> torch.Tensor:
-        """The outputs of ``extended`` on the training records, concatenated."""
-        parts = []
-        with torch.no_grad():
-            for t, u, start, hold, guess in self.records:
-                states = solve_rk4(extended, t, u, start, sensitivities=False, guess=guess, hold=hold).trajectory
-                parts.append(checked_output(extended.output(states, u), t).flatten())
-        return torch.cat(parts)
-
-    def probes(self, extended, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
-        """The outputs with the strength ``name`` at each of ``values``; ``None`` where its constraint forbids
-        the value."""
-        return [self.outputs(extended) if _assigned(extended, name, value) else None for value in values]
 
 
 def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experiment], probe: float,
@@ -351,14 +234,14 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
         with torch.no_grad():
             for tensor, delta in zip(raw, move, strict=False):  # the move's tail is the initial states'
                 tensor.add_(delta)
-        if _assigned(extended, name, start) and _training_mismatch(extended, train, moved, warm) < baseline.mismatch:
+        if assigned(extended, name, start) and _training_mismatch(extended, train, moved, warm) < baseline.mismatch:
             return fit(start_states=moved, warm=warm)
         with torch.no_grad():
             for tensor, value in zip(raw, origin, strict=True):
                 tensor.copy_(value)
     states = None if baseline is None or initial_state != "estimate" else baseline.initial_states
     for strength in [start * 0.5**i for i in range(20)] + [0.0]:
-        if not _assigned(extended, name, strength):  # beyond the parameter's constraint
+        if not assigned(extended, name, strength):  # beyond the parameter's constraint
             continue
         try:
             return fit(start_states=states)
@@ -381,9 +264,9 @@ def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tens
     return mismatch(torch.cat([r.y.flatten() for r in train]), torch.cat(outputs))
 
 
-def _free_shape(score: ModelScore, effect: str, train: list[Experiment], validation: list[Experiment], criterion: str,
-                threshold: float, max_nfev: int, initial_state: str, ftol: float) -> ModelScore:
-    """``score``'s model refitted with the effect's shape parameters freed, if that beats it by ``threshold``."""
+def _free_shape(score: ModelScore, effect: str, train: list[Experiment], validation: list[Experiment],
+                rule: SelectionRule, max_nfev: int, initial_state: str, ftol: float) -> ModelScore:
+    """``score``'s model refitted with the effect's shape parameters freed, if that beats it by the rule's threshold."""
     shape = score.model.effects[effect].shape
     if not shape:
         return score
@@ -394,8 +277,8 @@ def _free_shape(score: ModelScore, effect: str, train: list[Experiment], validat
                                ftol=ftol)
     except SimulationError:
         return score
-    candidate = score_model(freed, estimate, validation, criterion, initial_state)
-    return candidate if score.criterion - candidate.criterion > threshold else score
+    candidate = score_model(freed, estimate, validation, rule, initial_state)
+    return candidate if score.criterion - candidate.criterion > rule.threshold else score
 
 
 def rank_missing_effects(
@@ -404,10 +287,8 @@ def rank_missing_effects(
     train: Experiment | Sequence[Experiment],
     validation: Experiment | Sequence[Experiment],
     *,
+    rule: SelectionRule | None = None,
     shortlist: int = 2,
-    criterion: Literal["bic", "aic"] = "bic",
-    threshold: float = 10.0,
-    min_share: float = 0.05,
     initial_state: Literal["rest", "estimate"] = "rest",
     start_states: Sequence[torch.Tensor] | None = None,
     probe: float = 1e-4,
@@ -422,10 +303,9 @@ def rank_missing_effects(
             fitted baseline alone.
         train: the records to fit on.
         validation: the records to rank on.
+        rule: the decision rule (:class:`~torchpaml._diagnostics.SelectionRule`; default BIC, threshold 10,
+            min_share 5 %).
         shortlist: how many of the best-scored candidates are refitted (``len(candidates)``: all).
-        criterion: ``"bic"`` or ``"aic"``, on the validation records.
-        threshold: criterion improvement over the baseline needed to recommend an effect.
-        min_share: relative fall of the validation mismatch needed to recommend an effect.
         initial_state: ``"rest"``, or ``"estimate"``: every fit estimates each training record's initial
             state (:func:`~torchpaml._fit.fit_physics`), and each validation record starts from its best state.
         start_states: with ``"estimate"``, the baseline fit's starting guesses of the training records' initial
@@ -450,9 +330,10 @@ def rank_missing_effects(
                          + ". Give candidates written for this physics (`candidates:` in a --config file)")
     base = copy.deepcopy(physics)
     fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states)
-    baseline = score_model(base, fit, validation, criterion, initial_state)
+    rule = rule or SelectionRule()
+    baseline = score_model(base, fit, validation, rule, initial_state)
     if not candidates:
-        return Ranking(baseline, [], criterion, threshold, skipped, min_share)
+        return Ranking(baseline, [], rule, skipped, initial_state)
     scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
     engine = TangentLinear.of(base, train, fit.initial_states) or Secant(base, train, fit.initial_states)
     reference = engine.outputs(base) / scale  # the base's own output, from the trajectory the engine already holds
@@ -473,15 +354,15 @@ def rank_missing_effects(
         except ResolutionError as error:
             entry.failure = f"refit unresolved: {error}"
             continue
-        entry.refit = score_model(extended, refit, validation, criterion, initial_state)
+        entry.refit = score_model(extended, refit, validation, rule, initial_state)
         entry.improvement = baseline.criterion - entry.refit.criterion
         entry.unphysical = unphysical_values(entry.refit.model._rows())
     refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
     if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
         best = refitted[0]
-        best.refit = _free_shape(best.refit, best.effect, train, validation, criterion, threshold, max_nfev,
+        best.refit = _free_shape(best.refit, best.effect, train, validation, rule, max_nfev,
                                  initial_state, ftol)
         best.improvement = baseline.criterion - best.refit.criterion
         best.unphysical = unphysical_values(best.refit.model._rows())
     rest = [e for e in by_score if e.refit is None]
-    return Ranking(baseline, refitted + rest, criterion, threshold, skipped, min_share)
+    return Ranking(baseline, refitted + rest, rule, skipped, initial_state)

@@ -201,16 +201,18 @@ def ladder_figure(ladder: Ladder, discovered: ModelScore | None = None) -> Figur
 
 
 def discovery_figure(discovery: Discovery) -> Figure:
-    """The learned force against x, v and u along the training trajectory, the closed form overlaid."""
-    fig = Figure(figsize=(11, 3.6), layout="constrained")
+    """The learned rate of the first equation against each variable along the training trajectory, the closed form
+    overlaid."""
     s = discovery.samples
-    for ax, name in zip(fig.subplots(1, 3, sharey=True), ("x", "v", "u"), strict=True):
-        ax.plot(s[name], s["learned"], ".", ms=3, alpha=0.5, label="learned force (MLP)")
-        ax.plot(s[name], s["closed_form"], ".", ms=3, alpha=0.5, label="closed form + physics correction")
+    variables = [k for k in s if k not in ("learned", "closed_form")]
+    fig = Figure(figsize=(3.7 * len(variables), 3.6), layout="constrained")
+    for ax, name in zip(fig.subplots(1, len(variables), sharey=True, squeeze=False)[0], variables, strict=True):
+        ax.plot(s[name], s["learned"], ".", ms=3, alpha=0.5, label="learned rate (MLP)")
+        ax.plot(s[name], s["closed_form"], ".", ms=3, alpha=0.5, label="closed form")
         ax.set_xlabel(name)
-    fig.axes[0].set_ylabel("force (acceleration units)")
+    fig.axes[0].set_ylabel("rate of the first equation")
     fig.axes[0].legend(fontsize=8)
-    fig.suptitle(f"discovered: {discovery.expression}" + (" (recommended)" if discovery.recommended else ""))
+    fig.suptitle(f"discovered: {discovery.text}" + (" (recommended)" if discovery.recommended else ""))
     return fig
 
 

@@ -47,7 +47,7 @@ def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
         (out / "discovery.json").write_text(json.dumps(content["discovery"], indent=2))
         if discovery.effect is not None:
             (out / "discovered_effect.yaml").write_text(
-                f"# {discovery.expression}\n# add to `candidates:` of a `torchpaml diagnose --config` file\n"
+                f"# {discovery.text}\n# add to `candidates:` of a `torchpaml diagnose --config` file\n"
                 + yaml.safe_dump([discovery.effect.to_config()], sort_keys=False))
     return path
 
@@ -81,7 +81,7 @@ def _tensorboard(diagnosis: Diagnosis, content: dict, figures: dict, folder: Pat
         for key, value in content["discovery"]["nrmse_validation"].items():
             if value is not None:
                 writer.add_scalar(f"discovery/nrmse_validation/{key}", value, 0)
-        writer.add_text("discovery/expression", diagnosis.discovery.expression, 0)
+        writer.add_text("discovery/expression", diagnosis.discovery.text, 0)
     writer.add_text("diagnose/verdict", diagnosis.verdict, 0)
     writer.add_text("diagnose/final_model", f"    {diagnosis.ladder.final.model.describe()}".replace("\n", "\n    "), 0)
     writer.close()
@@ -103,7 +103,7 @@ def _discovery_section(found: dict | None) -> str:
     rows = [[key.replace("_", " "), _pct(value)] for key, value in found["nrmse_validation"].items()]
     judged = "recommended" if found["recommended"] else "not recommended"
     return (f"<h2>5. Discovery: a force outside the library</h2><p>Closed form of the learned force: "
-            f"<code>{html.escape(found['expression'])}</code> ({judged}: {html.escape(found['reason'])}). Best "
+            f"<code>{html.escape(str(found['expression']))}</code> ({judged}: {html.escape(found['reason'])}). Best "
             f"library effect: {html.escape(str(found['library_best']))}.</p>" + _table(["model", "validation %"], rows))
 
 

@@ -105,7 +105,8 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict:
                      "identifiability": base.warning},
         "ranking": [evidence_to_dict(e) for e in ranking.entries],
         "skipped_candidates": ranking.skipped,
-        "criterion": {"name": ranking.criterion, "threshold": ranking.threshold, "min_share": ranking.min_share},
+        "criterion": {"name": ranking.rule.criterion, "threshold": ranking.rule.threshold,
+                      "min_share": ranking.rule.min_share},
         "ladder": ladder_to_dicts(diagnosis.ladder),
         "where_it_fails": {
             "residual_autocorrelation_lags_outside": diagnosis.residuals.autocorrelation_outside.tolist(),

@@ -26,7 +26,7 @@ def ranking_table(ranking: Ranking) -> str:
     if ranking.skipped:
         head += "\nskipped (do not apply): " + "; ".join(f"{k}: {v}" for k, v in ranking.skipped.items())
     lines = [head, "",
-             f"| rank | effect | score | validation % | Δ{ranking.criterion.upper()} | parameters |",
+             f"| rank | effect | score | validation % | Δ{ranking.rule.criterion.upper()} | parameters |",
              "|---|---|---|---|---|---|"]
     for i, e in enumerate(ranking.entries, 1):
         refit = e.refit

@@ -76,7 +76,7 @@ def forced_response(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
         (k, time, n_output).
     """
     injected = _Injected(physics)
-    k, n = rates.shape[0], physics.state_dim
+    n = physics.state_dim
     chunk = max(1, ROW_SAMPLES // (2 * len(t) * max(n, 1)))
     linear = physics.state_space() is not None
     parts = []

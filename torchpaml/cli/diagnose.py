@@ -18,6 +18,7 @@ from typing import Literal
 
 from jsonargparse import ActionConfigFile, ArgumentError, ArgumentParser
 
+from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import EFFECTS, AbstractEffect
 from torchpaml._physics.registry import PHYSICS, parse_assignments
@@ -46,22 +47,26 @@ def _physics(physics: str | AbstractPhysics, fix: list[str] | None) -> AbstractP
     return physics.assign(**values).set_learnable(*values, learn=False)
 
 
-def _candidates(effects: list[str] | None, candidates: list[AbstractEffect] | None) -> list[AbstractEffect]:
+def _candidates(effects: list[str] | None, candidates: list[AbstractEffect] | None, discover: bool
+                ) -> list[AbstractEffect]:
     names = list(EFFECTS) if effects is None and candidates is None else list(effects or [])
     unknown = sorted(set(names) - set(EFFECTS))
     if unknown:
         raise ValueError(f"unknown effect(s) {unknown}; the library has {sorted(EFFECTS)}; put your own effects "
                          "under `candidates:` in a --config file")
     chosen = [EFFECTS[name]() for name in names] + list(candidates or [])
-    if not chosen:
-        raise ValueError("no candidate effects: name library effects with --effect, or list `candidates:` in --config")
+    if not chosen and not discover:
+        raise ValueError("no candidate effects: name library effects with --effect, list `candidates:` in --config, "
+                         "or run the discovery alone (--discover)")
     return chosen
 
 
 def resolve_models(physics: str | AbstractPhysics, fix: list[str] | None, effects: list[str] | None,
-                   candidates: list[AbstractEffect] | None) -> tuple[AbstractPhysics, list[AbstractEffect]]:
-    """The physics (a library name or an object, ``fix`` applied) and the candidate effects, checked."""
-    return _physics(physics, fix), _candidates(effects, candidates)
+                   candidates: list[AbstractEffect] | None, discover: bool = False
+                   ) -> tuple[AbstractPhysics, list[AbstractEffect]]:
+    """The physics (a library name or an object, ``fix`` applied) and the candidate effects, checked (none only
+    with ``discover``)."""
+    return _physics(physics, fix), _candidates(effects, candidates, discover)
 
 
 def check_options(shortlist: int, min_share: float) -> None:
@@ -123,9 +128,9 @@ def diagnose_command(
     if Path(out).is_file():
         raise ValueError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
     check_options(shortlist, min_share)
-    model, chosen = resolve_models(physics, fix, effects, candidates)
+    model, chosen = resolve_models(physics, fix, effects, candidates, discover)
     diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold, shortlist=shortlist,
-                                   criterion=criterion, threshold=threshold, min_share=min_share,
+                                   rule=SelectionRule(criterion, threshold, min_share),
                                    initial_state=initial_state, discover=discover, terms=terms or ())
     path = Path(out) / "diagnosis.json"
     print(ranking_table(diagnosis.ranking))

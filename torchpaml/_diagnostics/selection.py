@@ -1,0 +1,67 @@
+r"""The one decision rule of the ranking, the ladder and discovery: is a candidate model better than the current one?
+
+A :class:`SelectionRule` scores a fitted model on the validation records by an information criterion,
+
+$$ \mathrm{BIC} = n \ln(\mathrm{SSE}/n) + k \ln n, \qquad \mathrm{AIC} = n\ln(\mathrm{SSE}/n) + 2k, $$
+
+($k$ fitted parameters, $n$ samples) and accepts a candidate over the current model when
+
+- its criterion is lower by more than ``threshold`` (10: very strong evidence on the Kass-Raftery scale);
+- its validation mismatch is lower by at least the share ``min_share`` (5 %): on a long record whose
+  residual is not white, a criterion gain alone accepts models that change nothing;
+- its training mismatch is not above the current model's: a candidate that contains the current model
+  (an effect at strength 0) and fits the training records worse is a failed optimisation, not evidence.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+__all__ = ["SelectionRule"]
+
+#: Relative slack of "not above the current training mismatch" (the optimiser's last digits).
+TRAINING_SLACK = 1e-6
+
+
+@dataclass(frozen=True)
+class SelectionRule:
+    """The decision rule (module docstring).
+
+    Args:
+        criterion: ``"bic"`` or ``"aic"``, on the validation records.
+        threshold: criterion improvement needed to accept a candidate.
+        min_share: relative fall of the validation mismatch needed to accept a candidate.
+    """
+
+    criterion: Literal["bic", "aic"] = "bic"
+    threshold: float = 10.0
+    min_share: float = 0.05
+
+    def __post_init__(self):
+        if self.criterion not in ("bic", "aic"):
+            raise ValueError(f"criterion must be 'bic' or 'aic', got {self.criterion!r}")
+        if not 0 <= self.min_share < 1:
+            raise ValueError(f"min_share is a share of the validation mismatch, in [0, 1); got {self.min_share}")
+
+    def value(self, sse: float, samples: int, parameters: int) -> float:
+        """The criterion of a fit with sum of squared errors ``sse`` on ``samples`` samples and ``parameters`` fitted."""
+        penalty = parameters * math.log(samples) if self.criterion == "bic" else 2.0 * parameters
+        return samples * math.log(sse / samples) + penalty
+
+    def why_not(self, current, candidate) -> str | None:
+        """Why ``candidate`` is not accepted over ``current`` (both :class:`~torchpaml._diagnostics.ModelScore`),
+        or ``None`` when it is."""
+        if candidate.nrmse_train > current.nrmse_train * (1 + TRAINING_SLACK):
+            return "its refit ended above the current model's training mismatch (a failed optimisation)"
+        gain = current.criterion - candidate.criterion
+        share = 1 - candidate.nrmse_validation / current.nrmse_validation
+        if gain <= self.threshold or share < self.min_share:
+            return (f"it changes the criterion by {gain:+.1f} (needed more than {self.threshold:g}) and the validation "
+                    f"mismatch by {100 * share:.1f} % (needed {100 * self.min_share:g} %)")
+        return None
+
+    def accepts(self, current, candidate) -> bool:
+        """Whether ``candidate`` is better than ``current`` by this rule."""
+        return self.why_not(current, candidate) is None
