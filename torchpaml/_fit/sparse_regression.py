@@ -71,17 +71,32 @@ def extended_bic(sse: float, samples: int, terms: int, columns: int) -> float:
             + 2 * math.log(math.comb(columns, terms)))
 
 
+def _t_statistic(A: torch.Tensor, b: torch.Tensor, support: Sequence[int]) -> float:
+    """The smallest $|\\xi_i|/\\sigma_i$ of the least-squares fit on ``support`` (``inf`` for the empty support)."""
+    if not support:
+        return math.inf
+    columns = A[:, list(support)]
+    xi, sse = _solve(A, b, support)
+    dof = max(len(b) - len(support), 1)
+    variance = (sse / dof) * torch.linalg.pinv(columns.T @ columns).diagonal()
+    return float((xi.abs() / variance.clamp_min(1e-300).sqrt()).min())
+
+
 @dataclass(frozen=True)
 class SparseRegression:
     """The sparse regression of discovery (module docstring), a pluggable optimizer as PySINDy's.
 
     Args:
         max_terms: largest support considered.
+        min_t: smallest t-statistic $|\\xi_i|/\\sigma_i$ of a kept coefficient (its standard error from the
+            least-squares covariance $\\hat\\sigma^2 (A_S^\\top A_S)^{-1}$): a support with a coefficient that
+            the data do not determine (collinear columns) is not proposed.
         thresholds: the STLSQ thresholds $\\lambda$ swept, as shares of $\\|b\\|$.
     """
 
     max_terms: int = 4
     thresholds: tuple[float, ...] = THRESHOLDS
+    min_t: float = 2.0
 
     def select(self, A: torch.Tensor, measured: torch.Tensor, guides: Sequence[torch.Tensor] = ()) -> list[int]:
         """The support of lowest extended BIC against ``measured`` (module docstring).
@@ -96,5 +111,5 @@ class SparseRegression:
             supports |= {tuple(stlsq(A, target, lam)) for lam in self.thresholds}
         n = len(measured)
         scored = [(extended_bic(_solve(A, measured, s)[1], n, len(s), A.shape[1]), s) for s in supports
-                  if len(s) <= self.max_terms]
+                  if len(s) <= self.max_terms and _t_statistic(A, measured, s) >= self.min_t]
         return list(min(scored)[1])
