@@ -42,7 +42,7 @@ docs: install-docs
 
 # The docs' result tables, rewritten from the experiments' JSON under results/ (run the experiments first).
 tables: install
-	$(PYTHON) benchmarks/tables.py --results results --write docs/benchmarks.md docs/tutorials/*.md
+	$(PYTHON) benchmarks/tables.py --results results --write docs/benchmarks.md docs/tutorials/*.md docs/how-to/*.md
 
 bench: install-fleet
 	$(PYTHON) benchmarks/bench_simulation.py
