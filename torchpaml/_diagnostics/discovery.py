@@ -39,7 +39,7 @@ from __future__ import annotations
 import copy
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import sympy
@@ -137,7 +137,7 @@ def _columns(neural, physics, terms: list[str], equations: dict[str, int], varia
                                              hold=record.hold)[0])
     mechanical = "acceleration" in equations
     index = {"x": 0, "v": 1} if mechanical else {name: i for name, i in equations.items()}
-    signs = {w for c in compiled for w in c.widths}
+    signs = sorted({w for c in compiled for w in c.widths})
     by_width = {width_symbol(s): s for s in index}
     widths = {w: width_range(torch.cat([x[:, index[by_width[w]]] for x in trajectories])) for w in signs}
     names = physics.learnable_names()
@@ -256,10 +256,17 @@ def discover_missing_force(
     if not chosen:
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
                          "the sparse regression kept no term: nothing is missing that the physics cannot make", samples)
-    start = torch.linalg.lstsq(torch.cat([J, data.responses[:, chosen]], dim=1),
-                               data.measured[:, None]).solution[J.shape[1]:, 0]
-    discovered = _refit(physics, [pairs[i] for i in chosen], start.tolist(), data.widths, train, validation, rule,
-                        max_nfev, initial_state)
+    def first_order(kept: list[tuple[str, str]]) -> list[float] | None:
+        """The coefficients of ``kept`` by least squares on the responses (with the physics' Jacobian), or ``None``
+        where a term is not among the regressed ones (a limit replaced it)."""
+        if any(p not in pairs for p in kept):
+            return None
+        columns = torch.cat([J, data.responses[:, [pairs.index(p) for p in kept]]], dim=1)
+        return torch.linalg.lstsq(columns, data.measured[:, None]).solution[J.shape[1]:, 0].tolist()
+
+    chosen_pairs = [pairs[i] for i in chosen]
+    discovered = _refit(physics, chosen_pairs, first_order(chosen_pairs), data.widths, train, validation, rule,
+                        max_nfev, initial_state, first_order)
     if discovered is None:
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
                          "no term of the closed form is determined by the records", samples)
@@ -300,9 +307,11 @@ def _limit(term: str, width: str, variable: str, edge: str) -> str:
 
 def _refit(physics, pairs: list[tuple[str, str]], coefficients: list[float], widths: dict[str, tuple[float, float]],
            train: Sequence[Experiment], validation: Sequence[Experiment], rule: SelectionRule,
-           max_nfev: int, initial_state: str) -> ModelScore | None:
+           max_nfev: int, initial_state: str, first_order: Callable[[list[tuple[str, str]]], list[float] | None]
+           ) -> ModelScore | None:
     """``physics + DiscoveredForce(pairs)`` refitted and scored, with honest numbers (module docstring, step 3);
-    ``None`` when no term survives."""
+    ``None`` when no term survives. Each reduced support starts from its own first-order coefficients
+    (``first_order``), not from the previous refit's, whose collinear terms carry no information."""
     _, equations = variables_of(physics)
     index = {"x": 0, "v": 1} if "acceleration" in equations else dict(equations)
     owner = {width_symbol(s): s for s in index}
@@ -358,7 +367,7 @@ def _refit(physics, pairs: list[tuple[str, str]], coefficients: list[float], wid
             return score
         if not merged:
             return None
-        candidate = refit(list(merged), list(merged.values()))
+        candidate = refit(list(merged), first_order(list(merged)) or list(merged.values()))
         if candidate is None:
             return score if all(determined) else None
         if all(determined) and not changed and candidate.criterion > score.criterion + rule.threshold:

@@ -77,8 +77,9 @@ def _compile(node: sympy.Basic, text: str) -> Callable[[dict], torch.Tensor]:
         return lambda values, name=node.name: values[name]
     if node.is_Number:
         return lambda values, number=float(node): number
-    if node.is_Add or node.is_Mul:
-        parts = [_compile(arg, text) for arg in node.args]
+    if node.is_Add or node.is_Mul:  # sympy's printing order: node.args follow the strings' hashes, which vary by run
+        ordered = node.as_ordered_terms() if node.is_Add else node.as_ordered_factors()
+        parts = [_compile(arg, text) for arg in ordered]
         combine = (lambda a, b: a + b) if node.is_Add else (lambda a, b: a * b)
 
         def joined(values, parts=parts, combine=combine):
