@@ -6,13 +6,14 @@ For $b \approx A\xi$ with the columns of $A$ (samples, terms) scaled to unit nor
   solve least squares on the active columns, drop those with $|\xi_i| < \lambda\|b\|$, repeat until
   the active set stops changing. With unit columns, $|\xi_i|$ is the size of the term's contribution.
 * :func:`forward_selection`: add, one at a time, the column that lowers the residual most.
-* :class:`SparseRegression` (:meth:`~SparseRegression.select`): the candidate supports of both (STLSQ over a grid of $\lambda$ on each
-  target given, the forward path's prefixes), each with at most ``max_terms`` columns, scored
-  against the *measured* target, whose residual is noise, by the extended BIC of Chen & Chen (2008),
-  $\mathrm{EBIC} = n\ln(\mathrm{SSE}/n) + k\ln n + 2\ln\binom{p}{k}$ for $k$ of $p$ columns; the
-  lowest wins, the empty support included. The last term pays for the search: among 28 candidates
-  the best one fits noise better than BIC's $\ln n$ alone allows for (plain BIC picks a spurious
-  $u^2$ on records of the physics alone).
+* :class:`SparseRegression` (:meth:`~SparseRegression.select`): the candidate supports of both
+  (STLSQ over a grid of $\lambda$ on each target given, the forward path's prefixes), each with at
+  most ``max_terms`` columns whose coefficients the data determine (t-statistic at least ``min_t``),
+  scored against the *measured* target, whose residual is noise, by the extended BIC of Chen & Chen
+  (2008), $\mathrm{EBIC} = n\ln(\mathrm{SSE}/n) + k\ln n + 2\ln\binom{p}{k}$ for $k$ of $p$ columns;
+  the lowest wins, the empty support included. The last term pays for the search: among tens of
+  candidates the best one fits noise better than BIC's $\ln n$ alone allows for (plain BIC picks a
+  spurious $u^2$ on records of the physics alone).
 
 Plain least squares (``torch.linalg.lstsq``) does the work: the problems are tens of columns, so
 PySINDy would add a dependency for a loop of ten lines.
@@ -28,7 +29,7 @@ import torch
 
 __all__ = ["SparseRegression", "forward_selection", "stlsq"]
 
-#: Thresholds $\lambda$ (shares of $\|b\|$) that :func:`select_support` sweeps.
+#: Thresholds $\lambda$ (shares of $\|b\|$) that :class:`SparseRegression` sweeps.
 THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.6, 0.8)
 
 
