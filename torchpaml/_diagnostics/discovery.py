@@ -67,6 +67,8 @@ __all__ = ["Discovery", "discover_missing_force", "width_range"]
 PRUNE = 0.05
 #: A width within this factor of an edge of its range has reached the edge (its limit replaces it).
 EDGE = 1.05
+#: Two term columns whose |cosine| is above 1 - DUPLICATE are one term on this record.
+DUPLICATE = 1e-9
 #: Relative central-difference step of the physics' own sensitivities.
 STEP = 1e-6
 #: Largest standard error, relative to the coefficient, of a term that the records determine (a t-statistic of 1).
@@ -247,7 +249,8 @@ def discover_missing_force(
     columns = projected(data.responses)
     norms = columns.norm(dim=0)
     pairs = [(e, t) for e in equations for t in terms]
-    usable = [i for i in range(len(pairs)) if norms[i] > 1e-3 * data.responses[:, i].norm()]  # the rest the physics makes
+    usable = _distinct([i for i in range(len(pairs)) if norms[i] > 1e-3 * data.responses[:, i].norm()],
+                       columns / norms.clamp_min(1e-300))  # the rest the physics makes, or an earlier term does
     support = regression.select(columns[:, usable] / norms[usable], projected(data.measured[:, None])[:, 0],
                                 [projected(data.learned[:, None])[:, 0]])
     chosen = [usable[i] for i in support]
@@ -279,6 +282,17 @@ def discover_missing_force(
                          f"the best closed form, {effect.expression()}, does not improve on the physics: {reason}", samples)
     return Discovery(baseline, library_best, neural.mismatch, neural_validation, effect, discovered, missing, reason,
                      samples)
+
+
+def _distinct(indices: list[int], unit: torch.Tensor) -> list[int]:
+    """``indices`` without the columns of ``unit`` (unit norm) that repeat an earlier one (|cosine| > 1 - 1e-9):
+    ``Abs(level)`` and ``level*tanh(level/eps)`` are ``level`` on a record where the level stays positive, and
+    the library's order puts the plainer spelling first."""
+    kept: list[int] = []
+    for i in indices:
+        if not kept or float((unit[:, kept].T @ unit[:, i]).abs().max()) < 1 - DUPLICATE:
+            kept.append(i)
+    return kept
 
 
 def _closed_form_samples(effect: DiscoveredForce, samples: dict[str, torch.Tensor], variables: tuple[str, ...],
