@@ -290,3 +290,19 @@ def test_verbose_prints_the_traceback_of_an_error_in_the_users_physics(measured,
     assert exit_.value.code == 2
     assert "Traceback" in err and "self.damping" in err and err.strip().endswith(
         "fix the method (--verbose prints the traceback)")
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_progress_lines_on_stderr_unless_quiet(measured, tmp_path, monkeypatch, capsys, quiet):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "argv", ["torchpaml", "diagnose", "--data", str(measured / "train.csv"), "--validation",
+                                      str(measured / "val.csv"), "--out", "out", "--effect", "quadratic_damping",
+                                      *(["--quiet"] if quiet else [])])
+    main()
+    err = capsys.readouterr().err
+    lines = re.findall(r"^torchpaml diagnose \[ *[0-9.]+ s\] (.*)$", err, flags=re.MULTILINE)
+    if quiet:
+        assert lines == [], err
+    else:
+        assert lines[0] == "fitting Oscillator on 600 samples" and "refitting Oscillator + quadratic_damping" in lines
+        assert lines[-1] == "fitting the Chebyshev residual on top"

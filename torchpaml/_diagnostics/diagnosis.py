@@ -23,6 +23,7 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -46,6 +47,8 @@ from torchpaml._physics.terms import TermLibrary
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
 
 __all__ = ["Diagnosis", "HybridScore", "diagnose"]
+
+log = logging.getLogger(__name__)
 
 #: A residual counts as noise when at most this share of its input cross-correlation lags exceed
 #: :data:`NOISE_CORRELATION` and the 99 % bound (5 % leaves room for a few; a missing effect exceeds most).
@@ -200,6 +203,7 @@ def diagnose(
     by_input = error_by_amplitude(record.u, record.y, y_model)
     by_output = error_by_amplitude(record.y, record.y, y_model)
     alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
+    log.info("fitting the Chebyshev residual on top")
     hybrids = [_hybrid(step, train, validation, alpha) for step in _distinct(base, ladder.final)]
     discovery = None
     if discover:

@@ -37,6 +37,7 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
 from __future__ import annotations
 
 import copy
+import logging
 import math
 import warnings
 from collections.abc import Callable, Sequence
@@ -62,6 +63,8 @@ from torchpaml._simulate.sensitivity import output_jacobian, simulate_record
 from torchpaml._simulate.shooting import simulate_rk4
 
 __all__ = ["Discovery", "discover_missing_force", "width_range"]
+
+log = logging.getLogger(__name__)
 
 #: A term of the refitted closed form whose contribution is below this share of the largest term's is dropped.
 PRUNE = 0.05
@@ -233,11 +236,13 @@ def discover_missing_force(
     physics = baseline.model
     variables, equations = variables_of(physics)
     terms = library.build(physics)
+    log.info("discovery: training a neural rate on %s", physics.display_name)
     neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed)
     with torch.no_grad():
         neural_validation = mismatch(torch.cat([r.y for r in validation]),
                                      torch.cat([simulate_record(neural.model, r, x0)[0]
                                                 for r, x0 in zip(validation, baseline.validation_states, strict=True)]))
+    log.info("discovery: %d terms on %d equation(s) through the output", len(terms), len(equations))
     data = _columns(neural.model, physics, terms, equations, variables, train, baseline.train_states,
                     initial_state == "estimate")
     J = data.jacobian
@@ -268,6 +273,7 @@ def discover_missing_force(
         return torch.linalg.lstsq(columns, data.measured[:, None]).solution[J.shape[1]:, 0].tolist()
 
     chosen_pairs = [pairs[i] for i in chosen]
+    log.info("discovery: refitting %s", ", ".join(f"{t} ({e})" for e, t in chosen_pairs))
     discovered = _refit(physics, chosen_pairs, first_order(chosen_pairs), data.widths, train, validation, rule,
                         max_nfev, initial_state, first_order)
     if discovered is None:

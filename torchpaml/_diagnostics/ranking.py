@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -62,6 +63,8 @@ from torchpaml._physics.effects import AbstractEffect
 
 __all__ = ["EffectEvidence", "ModelScore", "REFIT_CRITERION_STEP", "Ranking", "rank_missing_effects", "refit_effect",
            "score_model"]
+
+log = logging.getLogger(__name__)
 
 #: A refit stops when a step changes the training criterion $n\ln(\mathrm{SSE}/n)$ by less than this (its ``ftol``
 #: is this over n): a hundredth of the threshold that decides. The effect that the ladder adds is fitted to the
@@ -329,12 +332,14 @@ def rank_missing_effects(
                          + "; ".join(f"{name}: {reason}" for name, reason in skipped.items())
                          + ". Give candidates written for this physics (`candidates:` in a --config file)")
     base = copy.deepcopy(physics)
+    log.info("fitting %s on %d samples", base.display_name, sum(len(r.t) for r in train))
     fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states)
     rule = rule or SelectionRule()
     baseline = score_model(base, fit, validation, rule, initial_state)
     if not candidates:
         return Ranking(baseline, [], rule, skipped, initial_state)
     scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
+    log.info("scoring %d candidates to first order", len(candidates))
     engine = TangentLinear.of(base, train, fit.initial_states) or Secant(base, train, fit.initial_states)
     reference = engine.outputs(base) / scale  # the base's own output, from the trajectory the engine already holds
     entries, extended_models = [], {}
@@ -347,6 +352,7 @@ def rank_missing_effects(
     by_score = sorted(entries, key=lambda e: -e.score)
     ftol = REFIT_CRITERION_STEP / sum(r.y.numel() for r in train)
     for entry in by_score[:shortlist]:
+        log.info("refitting %s + %s", base.display_name, entry.effect)
         extended, strength, move = extended_models[entry.effect]
         try:
             refit = refit_effect(extended, strength, entry.first_order_strength, train, max_nfev, initial_state, fit,

@@ -12,7 +12,11 @@ same way. ``--discover`` adds the discovery of a force outside the library (``di
 from __future__ import annotations
 
 import json
+import logging
 import re
+import sys
+import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Literal
 
@@ -29,7 +33,7 @@ __all__ = ["check_options", "config_mistake", "diagnose_command", "diagnose_pars
 #: Repeatable flags, spelled ``--fix NAME=VALUE`` on the command line (jsonargparse appends with ``+``).
 REPEATED = {"--fix": "--fix+", "--effect": "--effects+", "--term": "--terms+"}
 #: Switches that may stand alone: ``--discover`` means ``--discover true``.
-SWITCHES = ("--discover", "--verbose")
+SWITCHES = ("--discover", "--verbose", "--quiet")
 
 
 def _physics(physics: str | AbstractPhysics, fix: list[str] | None) -> AbstractPhysics:
@@ -95,6 +99,7 @@ def diagnose_command(
     discover: bool = False,
     terms: list[str] | None = None,
     verbose: bool = False,
+    quiet: bool = False,
 ) -> dict:
     """Diagnose ``physics`` on the records and write the report into ``out``; returns the ``diagnosis.json`` content.
 
@@ -121,6 +126,8 @@ def diagnose_command(
         terms: the discovery's own terms, sympy strings over the physics' variables (x, v, u for
             second-order physics, else its state names and u), e.g. ``x**2*sign(v)`` (repeat ``--term``).
         verbose: print the traceback of an error raised inside your physics (default: one line).
+        quiet: no progress lines (by default each stage, the rung, the candidate refitted, the discovery's
+            steps, is printed on stderr with the seconds since the start).
     """
     from torchpaml._render.report import diagnose_to_folder
     from torchpaml._render.tables import ranking_table
@@ -178,4 +185,31 @@ def run_diagnose(argv: list[str], prog: str = "torchpaml diagnose") -> dict:
     except ArgumentError as error:
         raise ValueError(config_mistake(str(error))) from None
     del config["config"]
-    return diagnose_command(**config)
+    with progress_lines(prog, enabled=not config["quiet"]):
+        return diagnose_command(**config)
+
+
+@contextmanager
+def progress_lines(prog: str, enabled: bool = True):
+    """While the block runs, the library's progress messages (``logging``, level INFO, logger ``torchpaml``) go to
+    stderr as ``prog [  12.3 s] message``; nothing when ``enabled`` is false. The handler is removed afterwards."""
+    logger = logging.getLogger("torchpaml")
+    if not enabled:
+        yield
+        return
+    start = time.perf_counter()
+
+    class Elapsed(logging.Formatter):
+        def format(self, record: logging.LogRecord) -> str:
+            return f"{prog} [{time.perf_counter() - start:7.1f} s] {record.getMessage()}"
+
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(Elapsed())
+    level = logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
+        logger.setLevel(level)

@@ -113,7 +113,7 @@ def diagnose_fleet(units: Path, out: Path, options: dict, *, address: str | None
 
 def fleet_parser(prog: str = "torchpaml fleet"):
     """The diagnose command's parser without its records and output, plus the fleet's own arguments."""
-    parser = diagnose_parser(prog, skip={"data", "validation", "out"})
+    parser = diagnose_parser(prog, skip={"data", "validation", "out", "quiet"})
     parser.description = __doc__
     parser.add_argument("--units", required=True, help="folder with one sub-folder per unit, each holding train.csv "
                                                        "and validation.csv")
