@@ -251,6 +251,7 @@ def test_discovery_alone_on_a_users_physics_from_a_config(tmp_path):
     ([], "physics: {class_path: user_model.NaNSpring}", "NaNSpring.acceleration returned NaN or infinity at the "
                                                         "starting parameters {'c': 1.0, 'k': 3.0, 'g': 1.0}"),
     ([], "physics: {class_path: user_model.NoSuchSpring}", "config key 'physics': "),
+    (["--discover", "--term", "w**2"], None, "term 'w**2' uses ['w'], which are not variables of this physics"),
     ([], "physics: {class_path: user_model.Spring, init_args: {kk: 1.0}}",
      "config key 'physics': Problem with given class_path 'user_model.Spring': Option 'kk' is not accepted"),
 ])

@@ -189,6 +189,9 @@ def diagnose(
                                                                  for c in candidates),
                                                 default=0)
     check_physics(physics, train[0].t, train[0].u)  # before any fit
+    library = TermLibrary(terms=tuple(terms))
+    if discover:
+        library.build(physics)  # a user term that does not parse is named before any fit
     for record in train + validation:  # checked before any fit
         if len(record.t) <= 2 * most:
             raise DataError(f"experiment {record.name!r} has {len(record.t)} samples, too few to fit up to {most} "
@@ -207,5 +210,5 @@ def diagnose(
     hybrids = [_hybrid(step, train, validation, alpha) for step in _distinct(base, ladder.final)]
     discovery = None
     if discover:
-        discovery = discover_missing_force(ladder.rankings[-1], train, validation, library=TermLibrary(terms=tuple(terms)))
+        discovery = discover_missing_force(ladder.rankings[-1], train, validation, library=library)
     return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation, discovery)

@@ -234,6 +234,9 @@ def discover_missing_force(
     library, regression = library or TermLibrary(), regression or SparseRegression()
     baseline, rule, initial_state = ranking.baseline, ranking.rule, ranking.initial_state
     physics = baseline.model
+    if physics.output_dim != 1 or physics.input_dim != 1:
+        raise ValueError(f"discovery handles one input and one output; {physics.display_name} has "
+                         f"{physics.input_dim} and {physics.output_dim}")
     variables, equations = variables_of(physics)
     terms = library.build(physics)
     log.info("discovery: training a neural rate on %s", physics.display_name)
