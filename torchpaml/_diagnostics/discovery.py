@@ -19,14 +19,12 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
    (:class:`~torchpaml._fit.sparse_regression.SparseRegression`: STLSQ and a forward path, scored by
    the extended BIC, which pays for the size of the search) picks the few terms that explain the
    measured residual $y - \hat y_{\text{physics}}$.
-3. **Refit, with honest numbers.** The closed form becomes a :class:`~torchpaml._physics.DiscoveredForce`
-   refitted with the physics by output error (:func:`~torchpaml._fit.fit_physics`). A smoothed sign's
-   width $\varepsilon_s$ is bounded to what the record resolves (:func:`width_range`: from the typical
-   change of $s$ over one sample to its RMS). A width that ends at the lower edge is a sign, and the
-   term becomes ``sign(s)``; one that ends at the upper edge is linear, and $m\tanh(s/\varepsilon)$
-   becomes $m\,s$. Terms whose coefficient the records do not determine (a standard error that is not
-   finite: a term the physics already has) and terms below :data:`PRUNE` of the largest are dropped
-   and the rest refitted; a pruning that costs more than the threshold of the criterion is undone.
+3. **Refit, with honest numbers** (:func:`~torchpaml._diagnostics.closed_form.refit_closed_form`). The
+   closed form becomes a :class:`~torchpaml._physics.DiscoveredForce` refitted with the physics by
+   output error. A smoothed sign's width is bounded to what the record resolves (:func:`width_range`:
+   from the typical change of $s$ over one sample to its RMS), and replaced by its limit at an edge
+   (a sign, or a linear term); terms whose standard error exceeds their coefficient, and terms too
+   small to matter, are dropped, and the rest refitted.
 4. **Judge.** The closed form is scored on the validation records like every rung and
    **recommended** when it beats the physics by the ranking's rules and the best library effect's
    criterion by more than the threshold; otherwise the library effect, which has a name, is
@@ -36,24 +34,18 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
 
 from __future__ import annotations
 
-import copy
 import logging
-import math
-import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-import sympy
 import torch
 
 from torchpaml._data import Experiment
-from torchpaml._diagnostics.ranking import (REFIT_CRITERION_STEP, EffectEvidence, ModelScore, Ranking, as_records,
-                                            refit_effect, score_model)
+from torchpaml._diagnostics.closed_form import refit_closed_form
+from torchpaml._diagnostics.ranking import EffectEvidence, ModelScore, Ranking, as_records
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
-from torchpaml._fit.uncertainty import IdentifiabilityWarning
-from torchpaml._errors import SimulationError
 from torchpaml._metrics import mismatch
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import TermLibrary, compile_term, variables_of, width_symbol
@@ -66,16 +58,10 @@ __all__ = ["Discovery", "discover_missing_force", "width_range"]
 
 log = logging.getLogger(__name__)
 
-#: A term of the refitted closed form whose contribution is below this share of the largest term's is dropped.
-PRUNE = 0.05
-#: A width within this factor of an edge of its range has reached the edge (its limit replaces it).
-EDGE = 1.05
 #: Two term columns whose |cosine| is above 1 - DUPLICATE are one term on this record.
 DUPLICATE = 1e-9
 #: Relative central-difference step of the physics' own sensitivities.
 STEP = 1e-6
-#: Largest standard error, relative to the coefficient, of a term that the records determine (a t-statistic of 1).
-DETERMINED = 1.0
 
 
 @dataclass
@@ -277,7 +263,7 @@ def discover_missing_force(
 
     chosen_pairs = [pairs[i] for i in chosen]
     log.info("discovery: refitting %s", ", ".join(f"{t} ({e})" for e, t in chosen_pairs))
-    discovered = _refit(physics, chosen_pairs, first_order(chosen_pairs), data.widths, train, validation, rule,
+    discovered = refit_closed_form(physics, chosen_pairs, first_order(chosen_pairs), data.widths, train, validation, rule,
                         max_nfev, initial_state, first_order)
     if discovered is None:
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
@@ -313,108 +299,6 @@ def _closed_form_samples(effect: DiscoveredForce, samples: dict[str, torch.Tenso
         if eq == equation:
             total = total + float(getattr(effect, name).detach()) * compile_term(term, None).evaluate(values)
     return total * float(effect.gain.detach())
-
-
-def _limit(term: str, width: str, variable: str, edge: str) -> str:
-    r"""``term`` with ``tanh(variable/width)`` replaced by its limit at the ``"low"`` edge (a sign, and
-    $s\,\mathrm{sign}(s) = |s|$) or the ``"high"`` edge (``variable/width``, the width then folded into the
-    coefficient)."""
-    s, w = sympy.Symbol(variable, real=True), sympy.Symbol(width, real=True)
-    expression = sympy.sympify(compile_term(term, None).text, locals={variable: s, width: w})
-    sign = sympy.tanh(s / w)
-    if edge == "high":
-        return str(expression.subs(sign, s))
-    power = expression.subs(sign, 1).as_powers_dict().get(s, 0)
-    return str(expression.subs(sign, sympy.Abs(s) / s if power >= 1 else sympy.sign(s)))
-
-
-def _refit(physics, pairs: list[tuple[str, str]], coefficients: list[float], widths: dict[str, tuple[float, float]],
-           train: Sequence[Experiment], validation: Sequence[Experiment], rule: SelectionRule,
-           max_nfev: int, initial_state: str, first_order: Callable[[list[tuple[str, str]]], list[float] | None]
-           ) -> ModelScore | None:
-    """``physics + DiscoveredForce(pairs)`` refitted and scored, with honest numbers (module docstring, step 3);
-    ``None`` when no term survives. Each reduced support starts from its own first-order coefficients
-    (``first_order``), not from the previous refit's, whose collinear terms carry no information."""
-    _, equations = variables_of(physics)
-    index = {"x": 0, "v": 1} if "acceleration" in equations else dict(equations)
-    owner = {width_symbol(s): s for s in index}
-
-    def refit(kept: list[tuple[str, str]], start: list[float]) -> ModelScore | None:
-        terms = [t for _, t in kept]
-        used = sorted({w for t in terms for w in compile_term(t, None).widths})
-        effect = DiscoveredForce(terms, start, [e for e, _ in kept],
-                                 widths={w: 2 * widths[w][0] for w in used})
-        extended = copy.deepcopy(physics) + effect
-        for w in used:
-            extended.bound(f"discovered.{w}", *widths[w])
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", IdentifiabilityWarning)
-                estimate = refit_effect(extended, "discovered.gain", 1.0, train, max_nfev, initial_state,
-                                        ftol=REFIT_CRITERION_STEP / sum(r.y.numel() for r in train))
-        except SimulationError:
-            return None
-        return score_model(extended, estimate, validation, rule, initial_state)
-
-    score = refit(pairs, coefficients)
-    for _ in range(8):  # each pass removes or replaces at least one term, or stops
-        if score is None:
-            return None
-        effect = score.model.effects["discovered"]
-        values = effect.values()
-        current = list(zip(effect.equations, effect.terms, strict=True))
-        starts = [values[n] for n in effect.parameter_names]
-        changed = False
-        for w in effect.width_names:  # a width at an edge of its range: its limit replaces it
-            low, high = widths[w]
-            edge = "low" if values[w] < EDGE * low else "high" if values[w] > high / EDGE else None
-            if edge is not None:
-                scale = 1.0 if edge == "low" else 1 / values[w]
-                for i, (e, t) in enumerate(current):
-                    if w in compile_term(t, None).widths:
-                        current[i] = (e, _limit(t, w, owner[w], edge))
-                        starts[i] *= scale
-                changed = True
-        relative = [score.uncertainty.get(f"discovered.{n}", math.inf) / max(abs(values[n]), 1e-300)
-                    for n in effect.parameter_names]
-        relative = [r if math.isfinite(r) else math.inf for r in relative]
-        sizes = _sizes(score, train)
-        worst = max(range(len(relative)), key=lambda i: (relative[i], -sizes[i]))
-        determined = [relative[i] < DETERMINED or i != worst for i in range(len(relative))]  # drop the worst only
-        keep = [i for i in range(len(current))
-                if determined[i] and sizes[i] >= PRUNE * max(sizes) and 1e-12 < abs(starts[i]) < 1e12]
-        merged: dict[tuple[str, str], float] = {}
-        for i in keep:  # a limit may turn two terms into one: their coefficients add
-            merged[current[i]] = merged.get(current[i], 0.0) + starts[i]
-        if not changed and len(merged) == len(current):
-            return score
-        if not merged:
-            return None
-        candidate = refit(list(merged), first_order(list(merged)) or list(merged.values()))
-        if candidate is None:
-            return score if all(determined) else None
-        if all(determined) and not changed and candidate.criterion > score.criterion + rule.threshold:
-            return score  # the pruning cost more than the threshold: the small terms stay
-        score = candidate
-    return score
-
-
-def _sizes(score: ModelScore, train: Sequence[Experiment]) -> list[float]:
-    """Each discovered term's contribution, $|g c_i|$ times the RMS of $\theta_i$, along the refitted model's first
-    training trajectory."""
-    model = score.model
-    effect = model.effects["discovered"]
-    record = train[0]
-    variables, equations = variables_of(model)
-    index = {"x": 0, "v": 1} if "acceleration" in equations else dict(equations)
-    with torch.no_grad():
-        states = simulate_rk4(model, record.t - record.t[0], record.u[None], score.train_states[0].reshape(1, -1),
-                              hold=record.hold)[0]
-        values = {**{name: states[:, i] for name, i in index.items()}, "u": record.u[:, 0],
-                  **{w: getattr(effect, w) for w in effect.width_names}}
-        return [abs(float(effect.gain * getattr(effect, name))) * float(compile_term(term, None).evaluate(values)
-                                                                         .square().mean().sqrt())
-                for name, term in zip(effect.parameter_names, effect.terms, strict=True)]
 
 
 def _judge(physics: ModelScore, library: EffectEvidence | None, discovered: ModelScore, rule: SelectionRule
