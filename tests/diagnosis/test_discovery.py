@@ -15,6 +15,7 @@ from torchpaml import (
     AbstractEffect,
     AbstractPhysics,
     CoulombFriction,
+    CubicStiffness,
     Pendulum,
     PhysicalParameter,
     Positive,
@@ -22,6 +23,7 @@ from torchpaml import (
     SecondOrderPhysics,
     Simulated,
     default_effects,
+    diagnose,
     discover_missing_force,
     discovery_to_dict,
     mismatch,
@@ -181,3 +183,17 @@ def test_discovery_runs_on_any_physics_and_finds_the_true_term(case):
     assert content["nrmse_validation"]["discovered"] < 1.2 * floor, content
     assert finite_numbers(content), content
     assert all(math.isfinite(t["std"]) for t in content["terms"]), content
+
+
+def test_on_a_ladder_discovery_finds_a_second_effect_on_top_of_a_first():
+    """Cubic stiffness (in the library) and a force factor x**2*u (outside it): the ladder adds the first, discovery
+    the second."""
+    truth = run.truth(CubicStiffness(1.0)) + forces.ForceFactor(0.5)
+    train, validation, floor = run.records(truth)
+    diagnosis = diagnose(run.physics(), default_effects(), train, validation, discover=True)
+    assert "cubic_stiffness" in diagnosis.ladder.added, diagnosis.verdict
+    content = discovery_to_dict(diagnosis.discovery)
+    terms = {t["term"]: t["coefficient"] for t in content["terms"]}
+    assert "u*x**2" in terms and terms["u*x**2"] == pytest.approx(-0.5, rel=0.1), content
+    assert content["nrmse_validation"]["physics"] > 1.3 * floor  # the last rung still missed it
+    assert content["nrmse_validation"]["discovered"] < 1.2 * floor, content
