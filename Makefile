@@ -49,6 +49,7 @@ bench: install-fleet
 	$(PYTHON) benchmarks/bench_reproduction.py
 	$(PYTHON) benchmarks/bench_ranking.py
 	$(PYTHON) benchmarks/bench_discovery.py
+	$(PYTHON) benchmarks/bench_diagnosis.py
 	$(PYTHON) benchmarks/bench_fleet.py
 
 contrast: install

@@ -1,0 +1,48 @@
+"""How the diagnosis' time grows with the record's length, against one physics fit measured in the same run.
+
+    python benchmarks/bench_diagnosis.py [--lengths 10000 100000]
+
+Data: the demo system (the oscillator with a hidden Coulomb friction), 20 Hz, 2 % noise, a
+pseudorandom training record and a multisine validation record of each length. For each length: one
+fit of the physics alone (the baseline, linear: exact simulation) and the whole diagnosis with the
+nine library effects (:func:`~torchpaml.diagnose`: the ladder and the Chebyshev residual on top).
+Reported: seconds, microseconds per sample, the ratio to the fit, and the time per sample against the
+shortest record's (1.0 is linear in N). Two threads, the machine's.
+"""
+
+import argparse
+import time
+
+from torchpaml import CoulombFriction, Oscillator, Simulated, default_effects, diagnose, fit_physics
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--lengths", type=int, nargs="+", default=[10_000, 100_000])
+    lengths = parser.parse_args().lengths
+    truth = Oscillator(zeta=0.2, omega0=2.0, gain=4.0, learn=()) + CoulombFriction(0.5)
+    print("| samples | physics fit s | diagnosis s | µs per sample | diagnosis / fit | per sample vs first | found |")
+    print("|---|---|---|---|---|---|---|")
+    first = None
+    for n in lengths:
+        records = dict(amplitude=1.0, duration=n * 0.05, dt=0.05, noise=0.02)
+        train = Simulated(truth, "pseudorandom", seeds=[0], **records).experiments()
+        validation = Simulated(truth, "multisine", seeds=[1], **records).experiments()
+
+        def physics():
+            return Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=("zeta", "omega0", "gain"))
+
+        start = time.perf_counter()
+        fit_physics(physics(), train)
+        fit = time.perf_counter() - start
+        start = time.perf_counter()
+        diagnosis = diagnose(physics(), default_effects(), train, validation)
+        seconds = time.perf_counter() - start
+        per = seconds / len(train[0].t)
+        first = first or per
+        print(f"| {len(train[0].t)} | {fit:.2f} | {seconds:.1f} | {1e6 * per:.0f} | {seconds / fit:.0f}x | "
+              f"{per / first:.2f} | {', '.join(diagnosis.ladder.added)} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
