@@ -39,6 +39,10 @@ class ResidualEstimate:
 
 
 RIDGE = 1e-8
+#: The pole search stops when a step changes the squared mismatch by less than this share of it: the unexplained
+#: share then moves in its ninth digit (measured on 20 000 samples), and the search takes half the evaluations
+#: that an absolute tolerance of 1e-14 does.
+CHANGE_TOLERANCE = 1e-9
 
 
 def project(regressors: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -71,7 +75,7 @@ def fit_chebyshev_hammerstein(
     def projected():
         return project(residual.regressors(t, u), target[..., 0])[1][..., None]
 
-    _, iterations = minimize_output_error(projected, target, poles, max_iter=max_iter)
+    _, iterations = minimize_output_error(projected, target, poles, max_iter=max_iter, rtol=CHANGE_TOLERANCE)
     with torch.no_grad():
         coefficients, _ = project(residual.regressors(t, u), target[..., 0])
         residual.set_coefficients(coefficients)
