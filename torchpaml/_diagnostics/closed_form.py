@@ -29,7 +29,7 @@ from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._errors import SimulationError
 from torchpaml._fit.uncertainty import IdentifiabilityWarning
 from torchpaml._physics.discovered import DiscoveredForce
-from torchpaml._physics.terms import compile_term, variables_of, width_symbol
+from torchpaml._physics.terms import compile_term, state_columns, width_symbol
 from torchpaml._simulate.shooting import simulate_rk4
 
 __all__ = ["refit_closed_form"]
@@ -62,8 +62,7 @@ def refit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[
     """``physics + DiscoveredForce(pairs)`` refitted and scored, with honest numbers (module docstring, step 3);
     ``None`` when no term survives. Each reduced support starts from its own first-order coefficients
     (``first_order``), not from the previous refit's, whose collinear terms carry no information."""
-    _, equations = variables_of(physics)
-    index = {"x": 0, "v": 1} if "acceleration" in equations else dict(equations)
+    index = state_columns(physics)
     owner = {width_symbol(s): s for s in index}
 
     def refit(kept: list[tuple[str, str]], start: list[float]) -> ModelScore | None:
@@ -132,8 +131,7 @@ def _sizes(score: ModelScore, train: Sequence[Experiment]) -> list[float]:
     model = score.model
     effect = model.effects["discovered"]
     record = train[0]
-    variables, equations = variables_of(model)
-    index = {"x": 0, "v": 1} if "acceleration" in equations else dict(equations)
+    index = state_columns(model)
     with torch.no_grad():
         states = simulate_rk4(model, record.t - record.t[0], record.u[None], score.train_states[0].reshape(1, -1),
                               hold=record.hold)[0]

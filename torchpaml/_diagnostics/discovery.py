@@ -48,7 +48,7 @@ from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
 from torchpaml._metrics import mismatch
 from torchpaml._physics.discovered import DiscoveredForce
-from torchpaml._physics.terms import TermLibrary, compile_term, variables_of, width_symbol
+from torchpaml._physics.terms import TermLibrary, compile_term, state_columns, variables_of, width_symbol
 from torchpaml._simulate.probes import assigned
 from torchpaml._simulate.response import forced_response
 from torchpaml._simulate.sensitivity import output_jacobian, simulate_record
@@ -126,8 +126,7 @@ def _columns(neural, physics, terms: list[str], equations: dict[str, int], varia
         for record, x0 in zip(train, starts, strict=True):
             trajectories.append(simulate_rk4(neural, record.t - record.t[0], record.u[None], x0.reshape(1, -1),
                                              hold=record.hold)[0])
-    mechanical = "acceleration" in equations
-    index = {"x": 0, "v": 1} if mechanical else {name: i for name, i in equations.items()}
+    index = state_columns(physics)
     signs = sorted({w for c in compiled for w in c.widths})
     by_width = {width_symbol(s): s for s in index}
     widths = {w: width_range(torch.cat([x[:, index[by_width[w]]] for x in trajectories])) for w in signs}

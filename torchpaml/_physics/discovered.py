@@ -27,13 +27,9 @@ import torch
 
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effects import AbstractEffect
-from torchpaml._physics.terms import compile_term, variables_of
+from torchpaml._physics.terms import compile_term, state_columns, variables_of
 
 __all__ = ["DiscoveredForce"]
-
-#: Variables of second-order physics: the column of the state (or of u) each is read from.
-_MECHANICAL = {"x": 0, "v": 1}
-
 
 def _slug(text: str) -> str:
     """A parameter-name fragment of a term: ``"x**2*tanh(v/eps)"`` -> ``"x2_tanh_v_eps"``."""
@@ -100,12 +96,9 @@ class DiscoveredForce(AbstractEffect):
         return None
 
     def rate(self, physics, x, u):
-        variables, equations = variables_of(physics)
-        if "acceleration" in equations:
-            values = {"x": x[..., 0], "v": x[..., 1]}
-        else:
-            values = {name: x[..., i] for name, i in equations.items()}
+        values = {name: x[..., i] for name, i in state_columns(physics).items()}
         values["u"] = u[..., 0]
+        equations = variables_of(physics)[1]
         values.update({w: getattr(self, w) for w in self.width_names})
         totals: dict[str, torch.Tensor] = {}
         for name, equation, term in zip(self.parameter_names, self.equations, self._compiled, strict=True):

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import sympy
 import torch
 
-__all__ = ["CompiledTerm", "TermLibrary", "compile_term", "variables_of", "width_symbol"]
+__all__ = ["CompiledTerm", "TermLibrary", "compile_term", "state_columns", "variables_of", "width_symbol"]
 
 _FUNCTIONS: dict[type, Callable[[torch.Tensor], torch.Tensor]] = {
     sympy.Abs: torch.abs, sympy.sign: torch.sign, sympy.tanh: torch.tanh, sympy.exp: torch.exp,
@@ -55,6 +55,13 @@ def variables_of(physics) -> tuple[tuple[str, ...], dict[str, int]]:
         raise ValueError(f"{base.display_name}'s state names {bad} cannot name variables of a term; give state_names "
                          "that are Python identifiers other than 'u' and not starting with 'eps'")
     return (*names, "u"), {name: i for i, name in enumerate(names)}
+
+
+def state_columns(physics) -> dict[str, int]:
+    """Each state variable's column in the state vector: ``{"x": 0, "v": 1}`` for second-order physics, else
+    ``{state name: index}``."""
+    _, equations = variables_of(physics)
+    return {"x": 0, "v": 1} if "acceleration" in equations else dict(equations)
 
 
 def width_symbol(variable: str) -> str:
