@@ -73,24 +73,25 @@ def main(argv: list[str] | None = None) -> dict:
     diagnosis = diagnose(physics, candidates(), train, validation, initial_state="estimate")
     write_report(diagnosis, args.out / "diagnosis")
     models = []
-    for step in diagnosis.ladder.steps:
+    content = diagnosis_to_dict(diagnosis)  # its uncertainty: null where a parameter is not determined
+    for step, rung in zip(diagnosis.ladder.steps, content["ladder"], strict=True):
         error = (test.y - simulate_record(step.model, test, step.train_states[0])[0])[:, 0]
         rmse = float(error.square().mean().sqrt())
         models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
-                       "uncertainty": step.uncertainty, "initial_state": step.train_states[0].tolist(),
+                       "uncertainty": rung["uncertainty"], "initial_state": step.train_states[0].tolist(),
                        "substeps": step.model.substeps,
                        "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}})
         print(f"{step.name}: test RMSE {rmse:.3f} V", flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,
-              "hybrid": diagnosis_to_dict(diagnosis)["hybrid"], "seconds": time.perf_counter() - start}
+              "hybrid": content["hybrid"], "seconds": time.perf_counter() - start}
     if args.discover:
         found = diagnose(physics, [], train, validation, initial_state="estimate", discover=True).discovery
         model = (found.discovered or found.physics)
         error = (test.y - simulate_record(model.model, test, model.train_states[0])[0])[:, 0]
         rmse = float(error.square().mean().sqrt())
-        content = discovery_to_dict(found)
-        result["discovery"] = {"expression": content["expression"], "terms": content["terms"],
-                               "recommended": content["recommended"], "reason": content["reason"],
+        written = discovery_to_dict(found)
+        result["discovery"] = {"expression": written["expression"], "terms": written["terms"],
+                               "recommended": written["recommended"], "reason": written["reason"],
                                "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}}
         print(f"discovered {found.expression}: test RMSE {rmse:.3f} V", flush=True)
         result["seconds"] = time.perf_counter() - start

@@ -110,14 +110,15 @@ def main(argv: list[str] | None = None) -> dict:
                          shortlist=args.shortlist)
     write_report(diagnosis, args.out / "diagnosis")
     models = []
-    for step in diagnosis.ladder.steps:
+    content = diagnosis_to_dict(diagnosis)  # its uncertainty: null where a parameter is not determined
+    for step, rung in zip(diagnosis.ladder.steps, content["ladder"], strict=True):
         rmse, nrmse = test_scores(step.model, tests)
         models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
-                       "uncertainty": step.uncertainty, "substeps": step.model.substeps, "rmse": rmse,
+                       "uncertainty": rung["uncertainty"], "substeps": step.model.substeps, "rmse": rmse,
                        "nrmse": nrmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,
-              "hybrid": diagnosis_to_dict(diagnosis)["hybrid"], "seconds": time.perf_counter() - start}
+              "hybrid": content["hybrid"], "seconds": time.perf_counter() - start}
     if args.discover:  # discovery alone, on the linear physics: which force is missing, in closed form
         found = diagnose(frequency_response_start(train), [], train, validation, discover=True).discovery
         discovered = found.discovered

@@ -42,3 +42,11 @@ def test_severity_puts_failures_first_then_the_largest_gains():
     units = [row("ok"), row("small", ["x"], 0.10, 0.08), row("broken", error="DataError: ..."),
              row("large", ["y"], 0.20, 0.02)]
     assert [r["unit"] for r in severity_order(units)] == ["broken", "large", "small", "ok"]
+
+
+def test_a_unit_whose_parameter_is_undetermined_is_never_its_outlier():
+    parameters = {"a": {"k": 1.0}, "b": {"k": 1.1}, "c": {"k": 5.0}, "d": {"k": 1.05}}
+    determined = {"a": {"k": 0.01}, "b": {"k": 0.01}, "c": {"k": 0.01}, "d": {"k": 0.01}}
+    assert parameter_spread(parameters, determined)[0].outliers == ["c"]
+    undetermined = {**determined, "c": {"k": None}}
+    assert parameter_spread(parameters, undetermined)[0].outliers == []

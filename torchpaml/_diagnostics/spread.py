@@ -41,12 +41,13 @@ class ParameterSpread:
 
 
 def parameter_spread(parameters: dict[str, dict[str, float]],
-                     uncertainty: dict[str, dict[str, float]]) -> list[ParameterSpread]:
+                     uncertainty: dict[str, dict[str, float | None]]) -> list[ParameterSpread]:
     """Per parameter that at least three units have, its spread (module docstring).
 
     Args:
         parameters: unit -> {parameter: fitted value}.
-        uncertainty: unit -> {parameter: standard error}; a missing one counts as 0.
+        uncertainty: unit -> {parameter: standard error}; a missing one counts as 0, and ``None`` (a parameter
+            the unit's records do not determine) as infinite: such a unit is never an outlier in it.
     """
     names = sorted({name for values in parameters.values() for name in values})
     spreads = []
@@ -55,7 +56,8 @@ def parameter_spread(parameters: dict[str, dict[str, float]],
         if len(units) < 3:
             continue
         values = np.array([parameters[u][name] for u in units], dtype=float)
-        stds = np.array([uncertainty.get(u, {}).get(name, 0.0) for u in units], dtype=float)
+        stds = np.array([uncertainty.get(u, {}).get(name, 0.0) for u in units], dtype=float)  # None -> nan
+        stds = np.where(np.isnan(stds), np.inf, stds)
         median = float(np.median(values))
         sigma = MAD_TO_STD * float(np.median(np.abs(values - median)))
         reach = REACH * np.sqrt(stds**2 + sigma**2)

@@ -247,8 +247,9 @@ def fleet_figure(spreads: list[ParameterSpread]) -> Figure:
         ax.axhspan(spread.median - 3 * spread.sigma, spread.median + 3 * spread.sigma, color="tab:blue", alpha=0.12,
                    label="median ± 3 robust spreads")
         ax.axhline(spread.median, color="tab:blue", lw=1.0)
-        ax.errorbar(x[~out], spread.values[~out], 3 * spread.stds[~out], fmt="o", color="black", ms=4, label="unit")
-        ax.errorbar(x[out], spread.values[out], 3 * spread.stds[out], fmt="o", color="tab:red", ms=5,
+        bars = np.where(np.isfinite(spread.stds), 3 * spread.stds, 0.0)  # an undetermined parameter: no bar
+        ax.errorbar(x[~out], spread.values[~out], bars[~out], fmt="o", color="black", ms=4, label="unit")
+        ax.errorbar(x[out], spread.values[out], bars[out], fmt="o", color="tab:red", ms=5,
                     label="stands out")
         for i in np.flatnonzero(out):
             ax.annotate(spread.units[i], (x[i], spread.values[i]), textcoords="offset points", xytext=(4, 4),

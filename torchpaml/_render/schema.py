@@ -29,7 +29,7 @@ def evidence_to_dict(evidence: EffectEvidence) -> dict:
         "nrmse_validation": None if refit is None else refit.nrmse_validation,
         "criterion": None if refit is None else refit.criterion,
         "improvement": evidence.improvement, "parameters": {} if refit is None else refit.parameters,
-        "uncertainty": {} if refit is None else refit.uncertainty, "unphysical": evidence.unphysical,
+        "uncertainty": {} if refit is None else _errors(refit.uncertainty), "unphysical": evidence.unphysical,
         "failure": evidence.failure,
     }
 
@@ -39,7 +39,7 @@ def ladder_to_dicts(ladder: Ladder) -> list[dict]:
     return [
         {"model": s.name, "equation": s.equation, "added": None if i == 0 else ladder.added[i - 1],
          "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
-         "parameters": s.parameters, "uncertainty": s.uncertainty, "identifiability": s.warning,
+         "parameters": s.parameters, "uncertainty": _errors(s.uncertainty), "identifiability": s.warning,
          "substeps": s.model.substeps}
         for i, s in enumerate(ladder.steps)
     ]
@@ -52,6 +52,16 @@ def hybrid_to_dict(hybrid: HybridScore) -> dict:
             "inadequate": hybrid.adequacy.inadequate, "message": hybrid.adequacy.message}
 
 
+def _error(std: float) -> float | None:
+    """A standard error as written: ``None`` (JSON ``null``) where the records do not determine the parameter
+    (an infinite or undefined error), so that no file carries ``Infinity``."""
+    return std if math.isfinite(std) else None
+
+
+def _errors(uncertainty: dict[str, float]) -> dict[str, float | None]:
+    return {name: _error(std) for name, std in uncertainty.items()}
+
+
 def _terms(discovery: Discovery) -> list[dict]:
     """``[{term, coefficient, std, equation}]``: each discovered term, its coefficient in the rate (gain included)
     and that coefficient's standard error."""
@@ -59,7 +69,8 @@ def _terms(discovery: Discovery) -> list[dict]:
         return []
     effect, std = discovery.effect, discovery.discovered.uncertainty
     gain = effect.values()["gain"]
-    return [{"term": term, "coefficient": c, "std": abs(gain) * std.get(f"discovered.{name}", math.inf), "equation": e}
+    return [{"term": term, "coefficient": c, "std": _error(abs(gain) * std.get(f"discovered.{name}", math.inf)),
+             "equation": e}
             for (term, c, e), name in zip(effect.terms_and_coefficients(), effect.parameter_names, strict=True)]
 
 
@@ -84,7 +95,7 @@ def discovery_to_dict(discovery: Discovery) -> dict:
                       "library_best": None if library is None else library.criterion,
                       "discovered": final.criterion},
         "parameters": final.parameters,
-        "uncertainty": final.uncertainty,
+        "uncertainty": _errors(final.uncertainty),
         "effect": None if discovery.effect is None else discovery.effect.to_config(),
     }
 
@@ -101,7 +112,7 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict:
         "schema_version": SCHEMA_VERSION,
         "baseline": {"model": base.name, "equation": base.equation, "nrmse_train": base.nrmse_train,
                      "nrmse_validation": base.nrmse_validation, "criterion": base.criterion,
-                     "parameters": base.parameters, "uncertainty": base.uncertainty,
+                     "parameters": base.parameters, "uncertainty": _errors(base.uncertainty),
                      "identifiability": base.warning},
         "ranking": [evidence_to_dict(e) for e in ranking.entries],
         "skipped_candidates": ranking.skipped,
