@@ -22,6 +22,7 @@ follow), and the cap at 5 is what gives the paper's 90.71 %.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import asdict, dataclass
 
 import torch
@@ -36,6 +37,8 @@ from torchpaml._signals import pseudorandom, pseudorandom_knots, sine, time_grid
 from torchpaml._simulate import simulate
 
 __all__ = ["PaperSetup", "PAPER_NUMBERS", "reproduce"]
+
+log = logging.getLogger(__name__)
 
 #: The paper's reported numbers (mismatch in %), for side-by-side display.
 PAPER_NUMBERS = {
@@ -96,6 +99,7 @@ def reproduce_alpha(alpha: float, seeds: list[int], setup: PaperSetup = PaperSet
 
     per_seed = []
     for i, seed in enumerate(seeds):
+        log.info("alpha %g: seed %d of %d", alpha, i + 1, len(seeds))
         train, val = slice(2 * i, 2 * i + 1), slice(2 * i + 1, 2 * i + 2)
         residual = ChebyshevHammerstein(alpha, n=setup.n, order=setup.order)
         fit_chebyshev_hammerstein(residual, t, u_random[train], y_random[train] - y_hat[train])

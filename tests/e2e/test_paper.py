@@ -25,12 +25,14 @@ def test_shortened_alpha4_pipeline_hybrid_beats_physics_and_zeta_holds():
 
 @pytest.mark.slow
 def test_reproduce_script_writes_the_documented_json(tmp_path):
-    subprocess.run(
+    done = subprocess.run(
         [sys.executable, str(ROOT / "experiments/paper/reproduce.py"), "--alpha", "4", "--seeds", "1", "--out",
          str(tmp_path)],
         check=True,
         capture_output=True,
+        text=True,
     )
+    assert "alpha 4: seed 1 of 1" in done.stderr  # its progress, one line per amplitude and seed
     report = json.loads((tmp_path / "results.json").read_text())
     entry = report["results"]["4"]
     for key in ("zeta_hat", "physical_id_mismatch", "delta_zeta"):

@@ -7,6 +7,8 @@ import json
 import time
 from pathlib import Path
 
+from torchpaml.cli.progress import progress_lines
+
 __all__ = ["run_command"]
 
 DESCRIPTION = """Physics-augmented learning of input-driven dynamical systems.
@@ -26,7 +28,8 @@ def _paper(args: argparse.Namespace) -> None:
     from torchpaml._render.tables import paper_table
 
     start = time.perf_counter()
-    report = reproduce(args.alpha or [4.0, 10.0], seeds=args.seeds)
+    with progress_lines(f"{args.prog} paper", enabled=not args.quiet):
+        report = reproduce(args.alpha or [4.0, 10.0], seeds=args.seeds)
     report["wall_time_s"] = time.perf_counter() - start
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -70,6 +73,7 @@ def _paper_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--alpha", type=float, action="append", help="input amplitude (repeat for several)")
     parser.add_argument("--seeds", type=int, default=10, help="number of pseudorandom seeds (default 10)")
     parser.add_argument("--out", required=True, help="output folder for results.json and table.md")
+    parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     parser.set_defaults(run=_paper)
 
 
@@ -86,6 +90,7 @@ def run_command(argv: list[str], prog: str = "torchpaml") -> None:
     """Parse ``argv`` (``simulate ...`` or ``paper ...``) and run the command."""
     top = parser(prog)
     args = top.parse_args(argv)
+    args.prog = prog
     if args.command == "paper" and args.seeds < 1:
         top.error("--seeds must be at least 1")
     args.run(args)

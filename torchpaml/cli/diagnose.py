@@ -12,17 +12,14 @@ same way. ``--discover`` adds the discovery of a force outside the library (``di
 from __future__ import annotations
 
 import json
-import logging
 import re
-import sys
-import time
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Literal
 
 from jsonargparse import ActionConfigFile, ArgumentError, ArgumentParser
 
 from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml.cli.progress import progress_lines
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import EFFECTS, AbstractEffect
 from torchpaml._physics.registry import PHYSICS, parse_assignments
@@ -187,29 +184,3 @@ def run_diagnose(argv: list[str], prog: str = "torchpaml diagnose") -> dict:
     del config["config"]
     with progress_lines(prog, enabled=not config["quiet"]):
         return diagnose_command(**config)
-
-
-@contextmanager
-def progress_lines(prog: str, enabled: bool = True):
-    """While the block runs, the library's progress messages (``logging``, level INFO, logger ``torchpaml``) go to
-    stderr as ``prog [  12.3 s] message``; nothing when ``enabled`` is false. The handler is removed afterwards."""
-    logger = logging.getLogger("torchpaml")
-    if not enabled:
-        yield
-        return
-    start = time.perf_counter()
-
-    class Elapsed(logging.Formatter):
-        def format(self, record: logging.LogRecord) -> str:
-            return f"{prog} [{time.perf_counter() - start:7.1f} s] {record.getMessage()}"
-
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(Elapsed())
-    level = logger.level
-    logger.addHandler(handler)
-    logger.setLevel(logging.INFO)
-    try:
-        yield
-    finally:
-        logger.removeHandler(handler)
-        logger.setLevel(level)
