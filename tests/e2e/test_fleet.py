@@ -63,7 +63,6 @@ def test_every_unit_is_diagnosed_a_broken_one_fails_alone_and_a_rerun_skips_the_
     page = (out / "fleet.html").read_text()
     assert page.index("unit_broken") < page.index("unit02") < page.index("unit00")  # failed, changed, as designed
     assert "<li><code>omega0</code>: unit08</li>" in page and (out / "fleet_parameters.png").stat().st_size > 1000
-    assert result["seconds"] < sum(row["seconds"] for row in result["units"])  # two workers at once
     with open(OUTPUTS_PAGE) as page_file:
         spans = re.findall(r"`([^`]+)`", page_file.read())
     documented = {word for span in spans for word in re.findall(r"\w+", span)}

@@ -93,11 +93,9 @@ def diagnose_fleet(units: Path, out: Path, options: dict, *, address: str | None
                 failed += rows[name]["error"] is not None
                 bar.set_postfix(done=len(rows) - failed, failed=failed, left=len(pending))
                 bar.update()
-        except KeyboardInterrupt:
-            for ref in pending:
-                ray.cancel(ref, force=True)
-            raise
-        finally:
+        finally:  # on Ctrl-C too: shutting Ray down stops its workers; a unit that finishes meanwhile is whole
+            # (its folder is written atomically). No ray.cancel(force=True): a task that completes while it is
+            # cancelled crashes Ray's core worker ("Tried to complete task that was not pending", Ray 2.x).
             bar.close()
             ray.shutdown()
     fleet = {"schema_version": 1, "engine": "ray", "workers": workers, "seconds": time.perf_counter() - start,
