@@ -166,19 +166,25 @@ def test_the_contract_run_writes_json_figures_html_and_tensorboard(measured):
         discovery["nrmse_validation"]["discovered"], rel=1e-6)
 
 
-def test_user_physics_and_user_effect_from_a_config(tmp_path):
-    """A user's Spring with data from a hidden user effect (cubic damping): ranked first against a library effect."""
-    (tmp_path / "user_model.py").write_text(USER_MODEL)
-    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+def spring_records(folder):
+    """A user's Spring with a hidden cubic damping (c3 = 0.6): its module and train.csv / val.csv written into
+    ``folder``; returns the environment that imports the module."""
+    (folder / "user_model.py").write_text(USER_MODEL)
+    env = {**os.environ, "PYTHONPATH": str(folder)}
     script = textwrap.dedent("""
-        import torch
         from user_model import Spring, CubicDamping
         from torchpaml._data import Simulated
         true = Spring(c=0.8, k=4.0, g=4.0, learn=()) + CubicDamping(0.6)
         for signal, seed, name in (("pseudorandom", 0, "train.csv"), ("multisine", 1, "val.csv")):
             Simulated(true, signal, 1.0, [seed], 30.0, 0.05, noise=0.02).experiments()[0].to_csv(name)
     """)
-    subprocess.run([sys.executable, "-c", script], check=True, cwd=tmp_path, env=env, timeout=300)
+    subprocess.run([sys.executable, "-c", script], check=True, cwd=folder, env=env, timeout=300)
+    return env
+
+
+def test_user_physics_and_user_effect_from_a_config(tmp_path):
+    """A user's Spring with data from a hidden user effect (cubic damping): ranked first against a library effect."""
+    env = spring_records(tmp_path)
     (tmp_path / "config.yaml").write_text(textwrap.dedent("""
         data: train.csv
         validation: val.csv
@@ -200,16 +206,7 @@ def test_user_physics_and_user_effect_from_a_config(tmp_path):
 
 def test_discovery_alone_on_a_users_physics_from_a_config(tmp_path):
     """``effects: []`` and ``discover: true`` on a user's Spring with a hidden cubic damping, with a user term."""
-    (tmp_path / "user_model.py").write_text(USER_MODEL)
-    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
-    script = textwrap.dedent("""
-        from user_model import Spring, CubicDamping
-        from torchpaml._data import Simulated
-        true = Spring(c=0.8, k=4.0, g=4.0, learn=()) + CubicDamping(0.6)
-        for signal, seed, name in (("pseudorandom", 0, "train.csv"), ("multisine", 1, "val.csv")):
-            Simulated(true, signal, 1.0, [seed], 30.0, 0.05, noise=0.02).experiments()[0].to_csv(name)
-    """)
-    subprocess.run([sys.executable, "-c", script], check=True, cwd=tmp_path, env=env, timeout=300)
+    env = spring_records(tmp_path)
     (tmp_path / "config.yaml").write_text(textwrap.dedent("""
         data: train.csv
         validation: val.csv
