@@ -26,7 +26,6 @@ from torchpaml._fit.output_error import minimize_output_error
 from torchpaml._physics.terms import variables_of
 from torchpaml._residual.mlp import MLPRate, RateAugmented
 from torchpaml._simulate.shooting import simulate_rk4
-from torchpaml._simulate.simulator import simulate
 
 __all__ = ["NeuralForceFit", "fit_neural_force"]
 
@@ -79,7 +78,7 @@ def fit_neural_force(
     warm = [{} for _ in records]
 
     def predict() -> torch.Tensor:
-        return torch.cat([simulate(model, t, u, x0, method="rk4", warm=w, hold=hold).flatten()
+        return torch.cat([model(t, u, x0, method="rk4", warm=w, hold=hold).flatten()
                           for (t, u, hold), x0, w in zip(grids, starts, warm, strict=True)])
 
     target = torch.cat([r.y.flatten() for r in records])

@@ -9,8 +9,9 @@ estimates the discretisation error of $\hat y_m$ (RK4 is fourth order: that erro
 where the solution is smooth). The fit stands when $g \le$ :data:`STEP_TOLERANCE` $\cdot\,\|r\|$, with
 $\|r\| = \|y - \hat y\|/\|y\|$ the misfit, or when $g \le$ :data:`STEP_FLOOR` (a noiseless record fitted
 exactly): the step then moves a printed mismatch by a tenth of it at most. Otherwise $m$ grows by the
-power of two that fourth order predicts brings $g$ to half the tolerance, and the fit goes on from its
-optimum at the finer step, until the check passes.
+power of two that fourth order predicts brings $g$ to half the tolerance
+(:func:`~torchpaml._simulate.step_control.next_substeps`, the rule :func:`~torchpaml.simulate`'s own step
+doubling follows), and the fit goes on from its optimum at the finer step, until the check passes.
 
 Beyond :data:`MAX_SUBSTEPS` it raises :class:`~torchpaml._errors.ResolutionError`: a rate of the fitted
 model is far faster than the sampling (a spill at 40 1/s in a record sampled every 4 s), and the fit
@@ -29,12 +30,12 @@ from torchpaml._data import Experiment
 from torchpaml._errors import ResolutionError
 from torchpaml._simulate.lti import exact_step
 from torchpaml._simulate.sensitivity import simulate_record
+from torchpaml._simulate.step_control import MAX_SUBSTEPS, next_substeps
 
 __all__ = ["MAX_SUBSTEPS", "STEP_FLOOR", "STEP_TOLERANCE", "resolved_substeps", "step_gap"]
 
 STEP_TOLERANCE = 0.1
 STEP_FLOOR = 1e-6
-MAX_SUBSTEPS = 64
 
 
 def step_gap(physics, records: Sequence[Experiment], states: Sequence[torch.Tensor | None]) -> float:
@@ -62,8 +63,8 @@ def resolved_substeps(physics, records: Sequence[Experiment], states: Sequence[t
     allowed = STEP_TOLERANCE * misfit
     if gap <= max(allowed, STEP_FLOOR):
         return m
-    factor = 2 ** max(1, math.ceil(math.log2((gap / max(allowed / 2, STEP_FLOOR / 2)) ** 0.25)))
-    if m * factor > MAX_SUBSTEPS:
+    following = next_substeps(m, gap, max(allowed, STEP_FLOOR))
+    if following > MAX_SUBSTEPS:
         step = float(records[0].t[1] - records[0].t[0])
         raise ResolutionError(
             f"{physics.display_name}'s fitted output depends on the RK4 step: halving the step at {m} substeps per "
@@ -72,4 +73,4 @@ def resolved_substeps(physics, records: Sequence[Experiment], states: Sequence[t
             f"the sampling (h = {step:g} s), and the fit settled where the integration error explains the data. "
             f"Bound that rate (physics.bound(name, lower, upper)) to what the sampling resolves, or sample faster. "
             f"Parameters: {physics.physical_parameters()}")
-    return m * factor
+    return following

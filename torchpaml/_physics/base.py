@@ -56,10 +56,11 @@ def state_vector(columns: list[torch.Tensor]) -> torch.Tensor:
 class AbstractPhysics(nn.Module):
     """Abstract ODE physics $\\dot x = f(t, x, u)$, $y = h(x, u)$. Subclasses define the two maps.
 
-    ``substeps``: the RK4 steps per sample interval that simulations of this model take unless told
-    otherwise; :func:`~torchpaml._fit.fit_physics` raises it until the fitted model's output no longer
-    depends on the step (:mod:`torchpaml._fit.resolution`). Linear physics on a uniform grid takes the
-    exact path and ignores it.
+    ``substeps``: the RK4 steps per sample interval at which calling the model, ``physics(t, u)``, simulates
+    it (training loops, fits), and where :func:`~torchpaml.simulate`'s step doubling starts;
+    :func:`~torchpaml._fit.fit_physics` raises it until the fitted model's output no longer depends on the
+    step (:mod:`torchpaml._fit.resolution`). Linear physics on a uniform grid takes the exact path and
+    ignores it.
     """
 
     state_names: tuple[str, ...] = ()
@@ -94,10 +95,11 @@ class AbstractPhysics(nn.Module):
         return torch.zeros(batch, self.state_dim, dtype=torch.float64)
 
     def forward(self, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None, **options) -> torch.Tensor:
-        """Simulate: t (time,), u (batch, time, n_input) -> y (batch, time, n_output). See :func:`simulate`."""
+        """Simulate at the model's own ``substeps`` unless told otherwise: t (time,), u (batch, time, n_input) -> y
+        (batch, time, n_output). See :func:`simulate`."""
         from torchpaml._simulate.simulator import simulate
 
-        return simulate(self, t, u, x0, **options)
+        return simulate(self, t, u, x0, **{"substeps": self.substeps, **options})
 
     def __add__(self, effect):
         """``physics + effect`` -> :class:`~torchpaml._physics.ComposedModel`; ``TypeError`` where the effect does not apply."""

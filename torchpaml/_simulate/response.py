@@ -96,7 +96,7 @@ def forced_response(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
             signed = torch.cat([eps * rows, -eps * rows])
             inputs = torch.cat([u.expand(len(signed), -1, -1), signed], dim=-1)
             starts = x0.expand(len(signed), -1)
-            y = simulate(injected, t, inputs, starts, method="rk4", warm={"states": base.expand(len(signed), -1, -1)},
+            y = injected(t, inputs, starts, method="rk4", warm={"states": base.expand(len(signed), -1, -1)},
                          hold=hold)
             parts.append((y[: len(rows)] - y[len(rows):]) / (2 * eps))
     return torch.cat(parts)

@@ -1,0 +1,130 @@
+"""``simulate``'s default RK4 step control (step doubling to ``rtol``) against scipy's DOP853 at rtol 1e-12.
+
+The model is the hard case: the linear oscillator (omega0 = 2 rad/s, sampled at h = 0.1 s, so
+h * omega0 = 0.2) plus a cubic stiffness whose force is twice the linear one at the RMS of the linear
+response. Tolerance: the error of the returned output (relative RMS) is at most ``rtol``. The oracle
+integrates each sample interval on its own, so that the first-order hold's corners fall on its step ends.
+"""
+
+import numpy as np
+
+import pytest
+import torch
+from scipy.integrate import solve_ivp
+
+from torchpaml import (AbstractPhysics, CubicStiffness, Oscillator, PhysicalParameter, Positive, ResolutionError,
+                       register_parameters, simulate, state_vector)
+from torchpaml._signals import multisine
+from torchpaml._simulate.step_control import next_substeps, output_gap
+
+
+@pytest.fixture(scope="module")
+def hard():
+    """(model, t, u, dopri5 reference output)."""
+    t = torch.arange(1500, dtype=torch.float64) * 0.1
+    u = multisine(t, 1.0, [0.05, 0.1, 0.2, 0.3, 0.5], seed=0)
+    linear = Oscillator(zeta=0.2, omega0=2.0, gain=4.0)
+    with torch.no_grad():
+        rms = float(simulate(linear, t, u).square().mean().sqrt())
+        model = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(2 * 4.0 / rms**2)
+        reference = oracle(model, t, u)
+    return model, t, u, reference
+
+
+def oracle(physics, t, u):
+    """The output (1, time, 1) by DOP853 at rtol 1e-12, interval by interval, the input linear in each."""
+    x = physics.initial_state(1)[0].numpy()
+    states = [x]
+    for k in range(len(t) - 1):
+        t0, t1, u0, u1 = float(t[k]), float(t[k + 1]), float(u[0, k, 0]), float(u[0, k + 1, 0])
+
+        def rate(time, state, t0=t0, t1=t1, u0=u0, u1=u1):
+            drive = torch.tensor([[u0 + (time - t0) * (u1 - u0) / (t1 - t0)]], dtype=torch.float64)
+            return physics.derivative(torch.tensor([time]), torch.tensor(state)[None], drive)[0].numpy()
+
+        x = solve_ivp(rate, (t0, t1), x, method="DOP853", rtol=1e-12, atol=1e-14).y[:, -1]
+        states.append(x)
+    with torch.no_grad():
+        return physics.output(torch.tensor(np.array(states))[None], u)
+
+
+def relative_error(y, reference):
+    return float((y - reference).norm() / reference.norm())
+
+
+@pytest.mark.parametrize("rtol", [None, 1e-5])
+def test_the_default_meets_its_tolerance_on_a_hard_nonlinearity(hard, rtol):
+    model, t, u, reference = hard
+    with torch.no_grad():
+        y = simulate(model, t, u, rtol=rtol)
+        one_substep = simulate(model, t, u, substeps=1)
+    assert relative_error(y, reference) <= (1e-3 if rtol is None else rtol)
+    assert relative_error(one_substep, reference) > 10 * relative_error(y, reference)  # the check did refine
+
+
+def test_a_fixed_step_is_taken_as_given_and_calling_the_model_uses_its_own(hard):
+    model, t, u, _ = hard
+    with torch.no_grad():
+        fixed = simulate(model, t, u, substeps=1)
+        called = model(t, u)
+        finer = simulate(model, t, u, substeps=2)
+    assert torch.equal(fixed, called)
+    assert not torch.equal(fixed, finer)
+
+
+def test_the_gradient_of_the_default_matches_central_differences(hard):
+    model, t, u, _ = hard
+    k3 = model.effects["cubic_stiffness"].parametrizations.k3.original
+    model.zero_grad()
+    simulate(model, t, u).square().sum().backward()
+    step = 1e-6 * float(k3.detach().abs())
+    with torch.no_grad():
+        k3 += step
+        plus = simulate(model, t, u).square().sum()
+        k3 -= 2 * step
+        minus = simulate(model, t, u).square().sum()
+        k3 += step
+    assert float(k3.grad) == pytest.approx(float((plus - minus) / (2 * step)), rel=1e-6)
+
+
+def test_a_tolerance_beyond_reach_raises_a_resolution_error_naming_the_fixes(hard):
+    model, t, u, _ = hard
+    with pytest.raises(ResolutionError, match=r"cannot meet rtol=1e-15.*Loosen rtol, fix the step with substeps=N, "
+                                              r"or integrate with method='dopri5'"):
+        simulate(model, t, u, rtol=1e-15)
+
+
+class FastTank(AbstractPhysics):
+    """A tank drained fast against the sampling: x' = -k x - x^3 + u."""
+
+    state_names = ("level",)
+
+    def __init__(self, k: float):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("k", k, "1/s", Positive(), "outflow rate")], ())
+
+    def derivative(self, t, x, u):
+        level = x[..., 0]
+        return state_vector([-self.k * level - level**3 + u[..., 0]])
+
+    def output(self, x, u):
+        return x
+
+
+def test_a_rate_too_fast_for_one_substep_is_integrated_at_more():
+    t = torch.arange(300, dtype=torch.float64) * 0.1
+    u = multisine(t, 1.0, [0.05, 0.1, 0.2], seed=1)
+    physics = FastTank(k=40.0)  # k h = 4: RK4 at one substep per sample is unstable
+    with torch.no_grad():
+        reference = oracle(physics, t, u)
+        y = simulate(physics, t, u)
+    assert relative_error(y, reference) <= 1e-3
+
+
+def test_step_doubling_arithmetic():
+    assert output_gap(torch.ones(4), torch.ones(4)) == 0.0
+    assert output_gap(torch.tensor([1.0, 0.0]), torch.tensor([0.0, 0.0])) == 0.0  # a zero output has no error
+    assert output_gap(torch.tensor([1.1]), torch.tensor([1.0])) == pytest.approx(0.1)
+    assert next_substeps(1, 1e-3, 1e-3) == 2  # at least doubles
+    assert next_substeps(2, 16 * 5e-4, 1e-3) == 4  # fourth order: a gap 16x half the target needs twice the substeps
+    assert next_substeps(2, 256 * 5e-4, 1e-3) == 8
