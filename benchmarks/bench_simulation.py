@@ -1,13 +1,20 @@
 """Nonlinear RK4 (parallel in time) against the exact linear path, and one nonlinear fit, in one run.
 
     python benchmarks/bench_simulation.py [--samples 65536] [--rows 1 64] [--repeats 3] [--dopri5-samples 8000]
+                                          [--error-samples 1500]
 
-For each row count: the exact first-order-hold path of the linear Oscillator (the baseline), and
-RK4 of Oscillator + CubicStiffness (k3 = 2, hardening) on the same input, forward alone and forward
-plus the gradient of a sum of squares. Prints seconds, nanoseconds per sample and row, and the ratio
-RK4 / exact. Then one fit (``fit_physics``) of Oscillator + CubicStiffness, four parameters, on a
-noisy record of ``--samples`` samples, and, for scale, dopri5 (rtol 1e-7) forward on
-``--dopri5-samples`` samples. One thread.
+Two nonlinear models, each against the exact first-order-hold path of the linear Oscillator on the
+same input (the baseline), forward alone and forward plus the gradient of a sum of squares:
+
+* mild: Oscillator + CubicStiffness (k3 = 2), h * omega0 = 0.1;
+* hard: the same with k3 such that the cubic force is twice the linear one at the RMS of the linear
+  response, h * omega0 = 0.2.
+
+Each is timed at one fixed RK4 substep per sample (the engine) and as ``simulate(model, t, u)`` does by
+default (step doubling to rtol 1e-3). Prints seconds, nanoseconds per sample and row, and the ratios to
+exact. Then the error of both against dopri5 at rtol 1e-11 on ``--error-samples`` samples of the hard
+model; one fit (``fit_physics``) of the mild model, four parameters, on a noisy record of ``--samples``
+samples; and, for scale, dopri5 (rtol 1e-7) forward on ``--dopri5-samples`` samples. One thread.
 """
 
 import argparse
@@ -27,20 +34,32 @@ def best(work, repeats: int) -> float:
     return min(times)
 
 
-def drive(samples: int, rows: int) -> tuple[torch.Tensor, torch.Tensor]:
-    t = torch.arange(samples, dtype=torch.float64) * 0.05
+def drive(samples: int, rows: int, step: float = 0.05) -> tuple[torch.Tensor, torch.Tensor]:
+    t = torch.arange(samples, dtype=torch.float64) * step
     u = torch.cat([multisine(t, 1.0, [0.05, 0.1, 0.2, 0.3, 0.5], seed=seed) for seed in range(rows)])
     return t, u
 
 
-def forward(physics, t, u, method):
+def forward(physics, t, u, **options):
     with torch.no_grad():
-        simulate(physics, t, u, method=method)
+        simulate(physics, t, u, **options)
 
 
-def forward_gradient(physics, t, u, method):
+def forward_gradient(physics, t, u, **options):
     physics.zero_grad()
-    simulate(physics, t, u, method=method).square().sum().backward()
+    simulate(physics, t, u, **options).square().sum().backward()
+
+
+def hard_model(linear, t, u):
+    """``linear`` + a cubic stiffness whose force is twice the linear one at the RMS of ``linear``'s response."""
+    with torch.no_grad():
+        rms = float(simulate(linear, t, u[:1]).square().mean().sqrt())
+    omega0 = linear.physical_parameters()["omega0"]
+    return Oscillator(**linear.physical_parameters()) + CubicStiffness(2 * omega0**2 / rms**2)
+
+
+def relative_error(y, reference) -> float:
+    return float((y - reference).norm() / reference.norm())
 
 
 def main() -> None:
@@ -49,22 +68,36 @@ def main() -> None:
     parser.add_argument("--rows", type=int, nargs="+", default=[1, 64])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--dopri5-samples", type=int, default=8000)
+    parser.add_argument("--error-samples", type=int, default=1500)
     args = parser.parse_args()
     torch.set_num_threads(1)
     linear = Oscillator(zeta=0.2, omega0=2.0, gain=4.0)
     duffing = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(2.0)
     n = args.samples
-    print(f"N = {n} samples, h*omega0 = 0.1, one thread")
-    print(f"{'rows':>5} {'pass':>17} {'exact s':>9} {'rk4 s':>8} {'rk4 ns/sample':>14} {'rk4/exact':>10}")
-    for rows in args.rows:
-        t, u = drive(n, rows)
-        for name, work in (("forward", forward), ("forward+gradient", forward_gradient)):
-            exact = best(lambda: work(linear, t, u, "exact"), args.repeats)
-            rk4 = best(lambda: work(duffing, t, u, "rk4"), args.repeats)
-            print(f"{rows:>5} {name:>17} {exact:>9.4f} {rk4:>8.3f} {1e9 * rk4 / (n * rows):>14.0f} {rk4 / exact:>10.1f}")
+    print(f"N = {n} samples, one thread; ratios to the exact linear path on the same input")
+    print(f"{'model':>22} {'rows':>5} {'pass':>17} {'exact s':>9} {'rk4(1) s':>9} {'ratio':>6} "
+          f"{'default s':>10} {'ratio':>6} {'default ns/sample':>18}")
+    for label, step in (("mild, h*omega0 = 0.1", 0.05), ("hard, h*omega0 = 0.2", 0.1)):
+        for rows in args.rows:
+            t, u = drive(n, rows, step)
+            model = duffing if step == 0.05 else hard_model(linear, t, u)
+            for name, work in (("forward", forward), ("forward+gradient", forward_gradient)):
+                exact = best(lambda: work(linear, t, u, method="exact"), args.repeats)
+                fixed = best(lambda: work(model, t, u, substeps=1), args.repeats)
+                default = best(lambda: work(model, t, u), args.repeats)
+                print(f"{label:>22} {rows:>5} {name:>17} {exact:>9.4f} {fixed:>9.3f} {fixed / exact:>6.1f} "
+                      f"{default:>10.3f} {default / exact:>6.1f} {1e9 * default / (n * rows):>18.0f}")
+    t, u = drive(args.error_samples, 1, 0.1)
+    hard = hard_model(linear, t, u)
+    with torch.no_grad():
+        reference = simulate(hard, t, u, method="dopri5", rtol=1e-11, atol=1e-12)
+        errors = {name: relative_error(simulate(hard, t, u, **options), reference)
+                  for name, options in (("rk4(1)", {"substeps": 1}), ("default", {}))}
+    print(f"\nhard model, {args.error_samples} samples, relative RMS error against dopri5 at rtol 1e-11: "
+          + ", ".join(f"{name} {error:.2e}" for name, error in errors.items()))
     t, u = drive(n, 1)
     with torch.no_grad():
-        y = simulate(duffing, t, u, method="rk4")
+        y = simulate(duffing, t, u)
     y = y + 0.02 * y.std() * torch.randn(y.shape, generator=torch.Generator().manual_seed(0))
     record = Experiment(t, u[0], y[0], "duffing")
     model = Oscillator(zeta=0.4, omega0=1.8, gain=3.0, learn=("zeta", "omega0", "gain")) + CubicStiffness(1.0)
@@ -78,9 +111,9 @@ def main() -> None:
           + f" (truth 0.2, 2, 4, 2); the linear Oscillator's fit on the same record: {exact_fit:.2f} s")
     m = args.dopri5_samples
     t, u = drive(m, 1)
-    dopri5 = best(lambda: forward(duffing, t, u, "dopri5"), 1)
-    rk4 = best(lambda: forward(duffing, t, u, "rk4"), args.repeats)
-    print(f"dopri5 forward on {m} samples: {dopri5:.2f} s ({1e6 * dopri5 / m:.0f} us/sample); rk4 {rk4:.3f} s: "
+    dopri5 = best(lambda: forward(duffing, t, u, method="dopri5"), 1)
+    rk4 = best(lambda: forward(duffing, t, u), args.repeats)
+    print(f"dopri5 forward on {m} samples: {dopri5:.2f} s ({1e6 * dopri5 / m:.0f} us/sample); the default {rk4:.3f} s: "
           f"{dopri5 / rk4:.0f} x faster")
 
 
