@@ -140,6 +140,9 @@ def test_the_contract_run_writes_json_figures_html_and_tensorboard(measured):
     assert [step["model"] for step in ladder] == ["Oscillator", "Oscillator + quadratic_damping"]
     assert ladder[1]["nrmse_validation"] < ladder[0]["nrmse_validation"] / 2
     assert "quadratic_damping" in report["verdict"]
+    first, last = report["hybrid"]  # the orthogonal residual does not hide the missing damping; on top of it, noise
+    assert first["inadequate"] and "PHYSICS INADEQUATE" in first["message"], first
+    assert not last["inadequate"] and last["message"].startswith("physics complete at this noise level"), last
     html = (out / "report.html").read_text()
     for name in FIGURES:
         assert (out / "figures" / f"{name}.png").stat().st_size > 1000

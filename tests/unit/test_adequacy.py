@@ -17,3 +17,13 @@ def test_either_condition_alone_raises_it():
     assert assess_adequacy(0.5, 0.3).inadequate  # closes only 40 % of the training error
     assert assess_adequacy(0.5, 0.1, 0.5, 0.6).inadequate  # fits training, worse on validation
     assert not assess_adequacy(0.5, 0.1, 0.5, 0.3).inadequate
+
+
+def test_noise_is_a_residual_the_orthogonal_residual_cannot_reduce():
+    # make demo, last rung: 1.95 % -> 1.86 % on training, linearly uncorrelated with the input: complete
+    complete = assess_adequacy(0.0195, 0.0186, 0.0199, 0.0436, residual_white=True)
+    assert not complete.inadequate and complete.message.startswith("physics complete at this noise level")
+    # make demo, the linear oscillator: friction is odd in the input, so its linear correlation is small, but the
+    # hybrid takes 15.2 % to 5.4 % on training and fails validation (84.3 % against 13.5 %): the alarm, not noise
+    alarm = assess_adequacy(0.1518, 0.0537, 0.1354, 0.8434, residual_white=True)
+    assert alarm.inadequate and "no better than the physics" in alarm.message

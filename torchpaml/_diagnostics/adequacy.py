@@ -7,17 +7,25 @@ record, and it also beats the physics on validation. The alarm goes off when eit
 - the hybrid's training mismatch stays above $\kappa$ (default 0.5) times the physics';
 - or its validation mismatch is no better than the physics'.
 The physics is then inadequate in this regime, and the hybrid's number must not be quoted as
-a model's accuracy. The exception is a physics whose residual is noise (``residual_white``: by
-effect size uncorrelated with the input, :func:`~torchpaml._diagnostics.diagnose` decides it from
-:func:`~torchpaml._diagnostics.residual_analysis`; coloured sensor noise counts as noise): then
-there is no gap to close, and the verdict says that the physics is complete at that noise level.
+a model's accuracy. The exception is a physics whose residual is noise, by effect size: linearly
+uncorrelated with the input (``residual_white``; :func:`~torchpaml._diagnostics.diagnose` decides it
+from :func:`~torchpaml._diagnostics.residual_analysis`; coloured sensor noise counts as noise), *and*
+beyond the reach of the orthogonal residual, which sees odd nonlinear functions of the input too
+($m_{\text{hybrid}} > $ :data:`NOISE_RATIO` $\, m_{\text{physics}}$ on training). Then there is no gap
+to close, and the verdict says that the physics is complete at that noise level. A residual that the
+hybrid does reduce (a missing friction is odd in the input and shows no linear correlation) is not
+noise, whatever its linear correlation.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Adequacy", "assess_adequacy"]
+__all__ = ["Adequacy", "NOISE_RATIO", "assess_adequacy"]
+
+#: A residual linearly uncorrelated with the input is noise when the orthogonal residual removes less than
+#: 10 % of the training mismatch (the hybrid's is above this share of the physics').
+NOISE_RATIO = 0.9
 
 
 @dataclass(frozen=True)
@@ -41,10 +49,10 @@ def assess_adequacy(
     """Mismatches as fractions (module docstring); ``closes`` is κ."""
     train_ratio = hybrid_train / physics_train
     validation_ratio = None if physics_validation is None else hybrid_validation / physics_validation
-    if residual_white:
+    if residual_white and train_ratio > NOISE_RATIO:
         return Adequacy(False, train_ratio, validation_ratio, (
             "physics complete at this noise level: its training residual is uncorrelated with the input (noise, "
-            f"white or coloured), so the orthogonal residual has nothing to add ({100 * physics_train:.1f} % -> "
+            f"white or coloured), and the orthogonal residual has nothing to add ({100 * physics_train:.1f} % -> "
             f"{100 * hybrid_train:.1f} % on training); use the physics alone"))
     reasons = []
     if train_ratio > closes:

@@ -12,8 +12,9 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    inadequacy alarm (:func:`~torchpaml._diagnostics.assess_adequacy`): on wrong physics it cannot
    close the gap and says so; on physics whose training residual is noise by effect size (its
    cross-correlation with the input below :data:`NOISE_CORRELATION` at all but :data:`WHITE_SHARE`
-   of the lags, coloured or not, whatever the record's length) it says that the physics is complete
-   at that noise level;
+   of the lags, coloured or not, whatever the record's length, and the orthogonal residual unable to
+   reduce it: :data:`~torchpaml._diagnostics.adequacy.NOISE_RATIO`) it says that the physics is
+   complete at that noise level;
 4. with ``discover=True``, the **discovery** of a force or rate outside the library on the ladder's
    last rung (:func:`~torchpaml._diagnostics.discover_missing_force`: a neural rate in the ODE, then its
    closed form, ranked against the library's best remaining effect), so that it can find a second
