@@ -94,6 +94,13 @@ def test_a_tolerance_beyond_reach_raises_a_resolution_error_naming_the_fixes(har
         simulate(model, t, u, rtol=1e-15)
 
 
+@pytest.mark.parametrize("substeps", ["fast", 0, 2.5])
+def test_a_step_that_is_not_auto_or_a_whole_number_is_refused(hard, substeps):
+    model, t, u, _ = hard
+    with pytest.raises(ValueError, match=r"substeps must be 'auto' \(RK4 to rtol\) or a whole number"):
+        simulate(model, t, u, substeps=substeps)
+
+
 class FastTank(AbstractPhysics):
     """A tank drained fast against the sampling: x' = -k x - x^3 + u."""
 

@@ -94,6 +94,9 @@ def simulate(
             return checked_output(physics.output(states, u), t, blowup)
 
         if substeps != "auto":
+            if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
+                raise ValueError(f"substeps must be 'auto' (RK4 to rtol) or a whole number of RK4 steps per sample "
+                                 f"interval, at least 1; got {substeps!r}")
             return run(substeps)
         warm = {} if warm is None else warm  # the accepted step's solve starts the differentiable one
         step = float((t[-1] - t[0]) / max(len(t) - 1, 1))
