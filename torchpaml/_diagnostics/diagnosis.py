@@ -26,8 +26,8 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
 from __future__ import annotations
 
 import logging
-from concurrent.futures import ThreadPoolExecutor
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import torch
