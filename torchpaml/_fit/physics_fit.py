@@ -39,6 +39,7 @@ from torchpaml._errors import SimulationError
 from torchpaml._fit.resolution import resolved_substeps
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
 from torchpaml._parameters import record_uncertainty
+from torchpaml._physics.base import complete_state
 from torchpaml._simulate.sensitivity import output_jacobian, raw_parameters
 
 __all__ = ["PhysicsEstimate", "estimate_initial_state", "fit_physics"]
@@ -114,7 +115,8 @@ def fit_physics(
         bounds: ``{name: (lower, upper)}`` in physical units.
         initial_state: ``"rest"`` (each record starts at rest) or ``"estimate"`` (each record's initial
             state is fitted too, an unbounded unknown per state; see ``PhysicsEstimate.initial_states``).
-        start_states: with ``initial_state="estimate"``, each record's starting guess (n_state,) (default: rest).
+        start_states: with ``initial_state="estimate"``, each record's starting guess (n_state,), or of
+            the base's states of ``physics + effect`` (:func:`~torchpaml._physics.complete_state`) (default: rest).
         warm: one dict per record that carries the RK4 engine's last solution into the fit's first Newton solve
             (``simulate(..., warm=)``, e.g. of a simulation at the start); default fresh ones.
         max_nfev: iteration limit of the trust region.
@@ -182,8 +184,9 @@ def fit_physics(
         except SimulationError:
             return np.full(sum(y.numel() for y in targets), np.inf)
 
-    guesses = [physics.initial_state(1)[0] for _ in records] if start_states is None else start_states
-    guesses = [x.detach().reshape(n_state).numpy() for x in guesses] if estimate_x0 else []
+    guesses = [None] * len(records) if start_states is None else start_states
+    guesses = [complete_state(physics, None if x is None else x.detach().reshape(1, -1), 1)[0].numpy()
+               for x in guesses] if estimate_x0 else []
     start = np.clip(np.concatenate([torch.stack([v.detach() for v in raw]).numpy() if raw else np.zeros(0), *guesses]),
                     lower, upper)
     evaluate(start)  # raises SimulationError, naming the blow-up, at a bad start

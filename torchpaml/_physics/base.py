@@ -40,7 +40,21 @@ from torch.nn.utils import parametrize
 
 from torchpaml._parameters import Interval, describe_parameters, format_table
 
-__all__ = ["AbstractPhysics", "SecondOrderPhysics", "state_vector"]
+__all__ = ["AbstractPhysics", "SecondOrderPhysics", "complete_state", "state_vector"]
+
+
+def complete_state(physics, x0: torch.Tensor | None, batch: int) -> torch.Tensor:
+    """The initial state (batch, n_state) to simulate ``physics`` from: rest (``physics.initial_state``) where
+    ``x0`` is ``None``; ``x0`` itself; or, where ``x0`` holds only the first states (those of the base of
+    ``physics + effect``), ``x0`` followed by the rest of ``physics.initial_state`` (the effects' own states at
+    their declared initial values). Raises ``ValueError`` for an ``x0`` with more states than the physics."""
+    rest = physics.initial_state(batch if x0 is None else x0.shape[0])
+    if x0 is None:
+        return rest
+    n, k = rest.shape[-1], x0.shape[-1]
+    if k > n:
+        raise ValueError(f"x0 has {k} states, but {physics.display_name} has {n}: {list(physics.state_names)}")
+    return x0 if k == n else torch.cat([x0, rest.to(x0)[..., k:]], dim=-1)
 
 
 def state_vector(columns: list[torch.Tensor]) -> torch.Tensor:

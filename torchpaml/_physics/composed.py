@@ -5,7 +5,11 @@ $$ \dot x = f_{\text{base}}(t, x, \tilde u) + \sum_e R_e(x, u) + e_v \sum_e F_e(
 
 with the rates $R_e$ on named state equations, the forces $F_e$ on the velocity equation $e_v$
 (second-order physics only: there $\ddot x = a_{\text{base}} + \sum_e F_e$), the input maps $m_{\text{in}}$ and output maps $m_{\text{out}}$ of the effects applied in the
-order they were added. Parameters keep their names: the base's (``zeta``, ``omega0``, ...) and each
+order they were added. An effect with its own states $z_e$ (:attr:`~torchpaml._physics.AbstractEffect.own_states`:
+hysteresis, dynamic friction, a lagged input) appends them to the state vector, $\dot z_e = g_e(x, z_e, u)$,
+after the base's states, named ``effect.state``; its force, rate and maps then read $z_e$ too. A state of the
+base's states alone, wherever one is passed, is completed with the effects' declared initial values
+(:func:`~torchpaml._physics.complete_state`). Parameters keep their names: the base's (``zeta``, ``omega0``, ...) and each
 effect's under its name (``cubic_stiffness.k3``). Composition flattens:
 ``(Oscillator() + CubicStiffness()) + QuadraticDamping()`` is one ``ComposedModel`` with two effects,
 and adding an effect whose name is already present raises ``ValueError``.
@@ -57,47 +61,70 @@ class ComposedModel(AbstractPhysics):
             raise ValueError("every effect needs a non-empty class attribute `name`")
         self.base = base
         self.effects = nn.ModuleDict({e.name: e for e in effects})
-        self.state_names = base.state_names
+        self.state_names = (*base.state_names,
+                            *(f"{e.name}.{s.name}" for e in effects for s in e.own_states))
         self.input_dim, self.output_dim = base.input_dim, base.output_dim
         self.substeps = base.substeps
 
-    def _mapped(self, u):
-        for effect in self.effects.values():
-            u = effect.input_map(u)
+    def _own(self, x: torch.Tensor) -> tuple[torch.Tensor, dict[str, tuple[torch.Tensor, ...]]]:
+        """The base's states (..., n_base) and, per effect, the extra hook argument: ``(z,)`` (..., k) for an
+        effect with own states, ``()`` for one without."""
+        n, own = self.base.state_dim, {}
+        for name, effect in self.effects.items():
+            k = len(effect.own_states)
+            own[name] = (x[..., n:n + k],) if k else ()
+            n += k
+        return x[..., :self.base.state_dim], own
+
+    def _mapped(self, u, own):
+        for name, effect in self.effects.items():
+            u = effect.input_map(u, *own[name])
         return u
 
     def derivative(self, t, x, u):
-        mapped = self._mapped(u)
+        x, own = self._own(x)
+        mapped = self._mapped(u, own)
         if isinstance(self.base, SecondOrderPhysics):  # forces apply there only (AbstractEffect.applies_to)
             pos, vel = x[..., 0], x[..., 1]
             acceleration = self.base.acceleration(t, pos, vel, mapped[..., 0])
-            for effect in self.effects.values():
-                force = effect.force(self.base, pos, vel, u[..., 0])
+            for name, effect in self.effects.items():
+                force = effect.force(self.base, pos, vel, u[..., 0], *own[name])
                 if force is not None:
                     acceleration = acceleration + force
             dx = state_vector([vel, acceleration])
         else:
             dx = self.base.derivative(t, x, mapped)
-        for effect in self.effects.values():
-            extra = effect.rate(self.base, x, u)
+        for name, effect in self.effects.items():
+            extra = effect.rate(self.base, x, u, *own[name])
             if extra is not None:
                 dx = dx + extra
-        return dx
+        rates = [effect.state_rate(self.base, x, own[name][0], u)
+                 for name, effect in self.effects.items() if effect.own_states]
+        if not rates:
+            return dx
+        return state_vector([*dx.unbind(-1), *(column for rate in rates for column in rate.unbind(-1))])
 
     def acceleration(self, t, x, v, u):
-        """$\\ddot x$ of a second-order base with the effects, x, v, u of shape (batch,) -> (batch,)."""
+        """$\\ddot x$ of a second-order base with the effects, x, v, u of shape (batch,) -> (batch,); effects with own
+        states have no acceleration of (x, v) alone."""
         if not isinstance(self.base, SecondOrderPhysics):
             raise TypeError(f"acceleration is defined for second-order physics; {self.base.display_name} is not")
+        if self.state_dim > 2:
+            raise TypeError(f"{self.display_name} carries effect states {list(self.state_names[2:])}: its acceleration "
+                            "depends on them too; call derivative(t, x, u) with the whole state")
         return self.derivative(t, torch.stack([x, v], dim=-1), u[..., None])[..., 1]
 
     def output(self, x, u):
-        y = self.base.output(x, self._mapped(u)).movedim(0, -1)  # batch last: parameters batched as (rows,) broadcast
+        x, own = self._own(x)
+        y = self.base.output(x, self._mapped(u, own)).movedim(0, -1)  # batch last: parameters batched as (rows,)
         for effect in self.effects.values():
             y = effect.output_map(y)
         return y.movedim(-1, 0)
 
     def initial_state(self, batch):
-        return self.base.initial_state(batch)
+        initial = [s.initial for e in self.effects.values() for s in e.own_states]
+        extra = torch.tensor(initial, dtype=torch.float64).expand(batch, len(initial))
+        return torch.cat([self.base.initial_state(batch), extra], dim=-1)
 
     def linear_base(self):
         return self.base.linear_base()
@@ -110,7 +137,11 @@ class ComposedModel(AbstractPhysics):
         return rows
 
     def describe(self) -> str:
-        return f"{self.display_name}: {self.equation()}\n{format_table(self._rows())}"
+        """The equation, the parameter table and the effects' own states (name, unit, meaning, initial value)."""
+        states = [f"{name}.{s.name} ({s.unit}): {s.meaning}, starts at {s.initial:g}"
+                  for name, effect in self.effects.items() for s in effect.own_states]
+        text = f"{self.display_name}: {self.equation()}\n{format_table(self._rows())}"
+        return text + "".join(f"\nstate {line}" for line in states)
 
     def _owner(self, name: str) -> tuple[nn.Module, str]:
         head, _, leaf = name.partition(".")

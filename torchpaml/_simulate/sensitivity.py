@@ -36,6 +36,7 @@ import torch
 from torch import nn
 from torch.func import functional_call
 
+from torchpaml._physics.base import complete_state
 from torchpaml._simulate.shooting import RK4Solution, solve_rk4
 from torchpaml._simulate.lti import check_hold, discrete_response, discretize, foh_exponent
 from torchpaml._simulate.simulator import checked_output, exact_step
@@ -182,7 +183,7 @@ def output_jacobian(
         ``initial_state``: the parameters' columns first. Raises
         :class:`~torchpaml._errors.SimulationError` if the output blows up.
     """
-    x0 = physics.initial_state(u.shape[0]).to(u) if x0 is None else x0
+    x0 = complete_state(physics, x0, u.shape[0]).to(u)
     raw = raw_parameters(physics, names)
     if not raw and not initial_state:
         raise ValueError(f"output_jacobian needs at least one parameter name; {physics.display_name} has "

@@ -282,6 +282,12 @@ def linear_guess(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, ho
         return simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, m, dtype=A.dtype), h, u, x0, hold)
 
 
+def _linear_states(physics, n: int) -> int:
+    """How many of the ``n`` states the linear base has (:func:`linear_guess`): all, unless effects add their own."""
+    base = physics.linear_base() if hasattr(physics, "linear_base") else None
+    return n if base is None else base.state_dim
+
+
 class _NotConverged(Exception):
     """Newton did not converge within its sweeps: :func:`simulate_rk4` retries with longer segments."""
 
@@ -332,7 +338,8 @@ def solve_rk4(
 
     With ``sensitivities`` the last sweep is graded (central differences, T exact to ~1e-10); without, its
     T comes from forward differences. Either way the last update is applied linearly (:func:`_newton`).
-    ``guess``: the states (batch, time, n) of a nearby solution (the previous iterate of a fit), whose
+    ``guess``: the states (batch, time, n) of a nearby solution (the previous iterate of a fit), or of its first
+    states (those of the base of ``physics + effect``, the effects' own states then held at ``x0``), whose
     values at the segment starts start Newton. Without it, Newton starts from the linear base's exact
     trajectory (:func:`linear_guess`) where there is one, else from $x_0$ held.
     ``warm``: a dict the caller keeps between solves of the same record (see :func:`simulate_rk4`); its
@@ -346,7 +353,10 @@ def solve_rk4(
     tol = tol if tol is not None else GRADIENT_TOL if sensitivities else NEWTON_TOL
     if warm is not None and "states" in warm:
         guess = warm["states"]
-    guess = guess if guess is not None else linear_guess(physics, t, u, x0, hold)
+    guess = guess if guess is not None else linear_guess(physics, t, u, x0[..., :_linear_states(physics, x0.shape[-1])], hold)
+    if guess is not None and guess.shape[-1] < x0.shape[-1]:  # the base's states: effect states start held at x0
+        held = x0[:, None, guess.shape[-1]:].expand(-1, guess.shape[1], -1)
+        guess = torch.cat([guess, held.to(guess)], dim=-1)
     length = segment
     while True:
         layout = _Layout(t, u, length, substeps, hold)

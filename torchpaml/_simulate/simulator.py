@@ -7,6 +7,7 @@ from typing import Literal
 import torch
 
 from torchpaml._errors import DataError, SimulationError
+from torchpaml._physics.base import complete_state
 from torchpaml._simulate.lti import check_hold, exact_step, simulate_lti, uniform_step
 from torchpaml._simulate.ode import simulate_ode
 from torchpaml._simulate.shooting import SEGMENT_STEPS, simulate_rk4
@@ -45,7 +46,8 @@ def simulate(
         physics: an :class:`~torchpaml._physics.AbstractPhysics`.
         t: sample times in s, shape (time,), shared by the batch.
         u: input samples, shape (batch, time, n_input), float64.
-        x0: initial state (batch, n_state); rest if omitted.
+        x0: initial state (batch, n_state), or of the base's states only (``physics + effect``: the effects' own
+            states then start at their declared values, :func:`~torchpaml._physics.complete_state`); rest if omitted.
         method: ``"auto"`` (exact for linear physics on a uniform grid, else ``"rk4"``), ``"exact"``,
             ``"rk4"`` (fixed-step RK4 on the sample grid, parallel in time:
             :func:`~torchpaml._simulate.shooting.simulate_rk4`), or any other torchdiffeq method name
@@ -76,7 +78,7 @@ def simulate(
     """
     if u.dim() != 3 or u.shape[1] != t.shape[-1]:
         raise DataError(f"u must have shape (batch, time={t.shape[-1]}, channel), got {tuple(u.shape)}")
-    x0 = physics.initial_state(u.shape[0]).to(u) if x0 is None else x0
+    x0 = complete_state(physics, x0, u.shape[0]).to(u)
     if check_hold(hold) == "zoh" and method not in ("auto", "exact", "rk4"):
         raise ValueError(f"hold='zoh' is simulated by the exact path and by 'rk4', not by {method!r}, whose "
                          "interpolant is first-order; use method='rk4' (with substeps=) or 'auto'")

@@ -1,0 +1,104 @@
+"""The effect protocol: :class:`AbstractEffect`, what ``physics + effect`` adds, and :class:`EffectState`, a state
+an effect carries of its own. The library's effects: :mod:`~torchpaml._physics.effects`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+from torch import nn
+
+from torchpaml._physics.base import SecondOrderPhysics, state_vector
+
+__all__ = ["AbstractEffect", "EffectState"]
+
+
+@dataclass(frozen=True)
+class EffectState:
+    """A state an effect carries of its own (a hysteretic displacement, a lagged input): its name, unit and
+    initial value. ``physics + effect`` appends it to the state vector as ``effect.name``."""
+
+    name: str
+    unit: str = "-"
+    initial: float = 0.0
+    meaning: str = ""
+
+
+class AbstractEffect(nn.Module):
+    """An effect added to physics with ``+`` (module docstring). Override any of the four hooks:
+
+    * ``force(physics, x, v, u)``: an extra acceleration (batch,) from x, v, u (batch,); second-order
+      (mechanical) physics only, where it enters the velocity equation;
+    * ``rate(physics, x, u)``: an extra term of $\\dot x$, (batch, n_state) from x (batch, n_state) and
+      u (batch, n_input), for any physics; :meth:`on_state` builds it for one named state equation;
+    * ``input_map(u)`` and ``output_map(y)``: elementwise transforms of the signals, for any physics.
+
+    Defaults: no force, no rate, identity maps. ``physics`` is the base model, for effects that scale
+    with its parameters. :meth:`applies_to` says why an effect cannot be added to a physics.
+
+    **Effects with memory** declare :attr:`own_states` (:class:`EffectState`) and give their dynamics in
+    :meth:`state_rate`; the composed model integrates them with the physics. Their hooks then receive the
+    effect's states ``z`` (batch, k) as one more, last argument: ``force(physics, x, v, u, z)``,
+    ``rate(physics, x, u, z)``, ``input_map(u, z)``. At strength 0 the states may evolve but must not act.
+    """
+
+    name: str = ""
+    equation: str = ""
+    #: the state names the effect's ``rate`` needs in the base physics (checked by :meth:`applies_to`)
+    states: tuple[str, ...] = ()
+    #: fixed parameters that set the effect's shape (a smoothing width), which the ranking may free
+    #: when the data asks for it (:func:`~torchpaml._diagnostics.rank_missing_effects`)
+    shape: tuple[str, ...] = ()
+    #: the effect's own states, appended to the physics' state vector (module docstring of ``composed``)
+    own_states: tuple[EffectState, ...] = ()
+
+    @property
+    def strength(self) -> str:
+        """The strength parameter: the first declared one. At strength 0 the effect must leave the model unchanged."""
+        return next(iter(self._physical))
+
+    def applies_to(self, physics: nn.Module) -> str | None:
+        """Why this effect cannot be added to ``physics`` (the base model), or ``None`` if it can."""
+        if type(self).force is not AbstractEffect.force and not isinstance(physics, SecondOrderPhysics):
+            return (f"{self.name} is a force, which acts on second-order (mechanical) physics with state (position, "
+                    f"velocity); {physics.display_name} is not a SecondOrderPhysics")
+        missing = [s for s in self.states if s not in physics.state_names]
+        if missing:
+            return (f"{self.name} acts on the state(s) {missing}, which {physics.display_name} does not have "
+                    f"(its states: {list(physics.state_names)})")
+        return None
+
+    def force(self, physics: nn.Module, x: torch.Tensor, v: torch.Tensor, u: torch.Tensor, z: torch.Tensor | None = None
+              ) -> torch.Tensor | None:
+        return None
+
+    def rate(self, physics: nn.Module, x: torch.Tensor, u: torch.Tensor, z: torch.Tensor | None = None
+             ) -> torch.Tensor | None:
+        return None
+
+    def state_rate(self, physics: nn.Module, x: torch.Tensor, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """$\\dot z$ (batch, k) of the effect's own states z (batch, k), from the physics' states x (batch, n_state)
+        and the input u (batch, n_input). Effects with :attr:`own_states` must define it."""
+        raise NotImplementedError(f"{self.name} declares own_states and must implement state_rate(physics, x, z, u)")
+
+    def starts(self, records: list) -> list[dict[str, float]]:
+        """Settings of the effect's other parameters (``{name: value}``) from which the ranking probes and refits
+        it, derived from the measured ``records`` (the scale of y, of its rate): the ranking scores each to first
+        order and refits from the best. The default, ``[{}]``: the parameters as constructed."""
+        return [{}]
+
+    def probe(self, records: list) -> float | None:
+        """The strength at which the ranking probes the effect's first-order direction on ``records``, where its
+        default (1e-4) does not suit; ``None`` (the default): the ranking's."""
+        return None
+
+    def input_map(self, u: torch.Tensor, z: torch.Tensor | None = None) -> torch.Tensor:
+        return u
+
+    def output_map(self, y: torch.Tensor) -> torch.Tensor:
+        return y
+
+    @staticmethod
+    def on_state(physics: nn.Module, x: torch.Tensor, terms: dict[str, torch.Tensor]) -> torch.Tensor:
+        """A ``rate`` (batch, n_state) that adds ``terms[name]`` (batch,) to the equation of each named state."""
+        return state_vector([terms.get(name, torch.zeros_like(x[..., 0])) for name in physics.state_names])
