@@ -35,7 +35,7 @@ def test_maps_apply_to_any_physics_and_forces_are_refused_with_the_reason():
 
 def test_the_default_candidates_that_apply_to_first_order_physics():
     applicable = {e.name for e in default_effects() if e.applies_to(tanks.TwoTanks()) is None}
-    assert applicable == {"input_saturation", "output_saturation", "dead_zone"}
+    assert applicable == {"input_saturation", "output_saturation", "dead_zone", "input_lag"}
 
 
 def test_first_order_physics_with_the_default_candidates_runs_and_lists_the_skipped_ones():
@@ -52,7 +52,8 @@ def test_first_order_physics_with_the_default_candidates_runs_and_lists_the_skip
     physics = tanks.TwoTanks(0.02, 0.01, 0.01, 0.05, learn=("k1", "k3", "k4"))
     ranking = rank_missing_effects(physics, default_effects(), records[0], records[1], shortlist=1)
     assert set(ranking.skipped) == {"cubic_stiffness", "quadratic_stiffness", "pendulum_restoring",
-                                    "coulomb_friction", "quadratic_damping", "constant_force"}
+                                    "coulomb_friction", "quadratic_damping", "constant_force", "hysteresis",
+                                    "dynamic_friction"}
     assert all("is a force" in reason for reason in ranking.skipped.values())
     assert ranking.recommended is not None and ranking.recommended.effect == "output_saturation"
 

@@ -4,11 +4,16 @@ import pytest
 import torch
 
 from torchpaml import (
+    AbstractEffect,
+    complete_state,
     ComposedModel,
     CubicStiffness,
     DeadZone,
     default_effects,
     EFFECTS,
+    EffectState,
+    Hysteresis,
+    InputLag,
     InputSaturation,
     Oscillator,
     OutputSaturation,
@@ -27,7 +32,8 @@ TIGHT = dict(rtol=1e-9, atol=1e-11)
 def test_the_library_has_every_effect_the_issue_names():
     assert set(EFFECTS) == {
         "cubic_stiffness", "quadratic_stiffness", "pendulum_restoring", "coulomb_friction", "quadratic_damping",
-        "input_saturation", "output_saturation", "constant_force", "dead_zone",
+        "input_saturation", "output_saturation", "constant_force", "dead_zone", "hysteresis", "dynamic_friction",
+        "input_lag",
     }
 
 
@@ -112,3 +118,55 @@ def test_gradients_reach_effect_parameters_through_the_ode(grid):
         up = simulate(model.assign(**{"cubic_stiffness.k3": 0.5 + step}), t, u, knots=knots, **TOL).pow(2).sum()
         down = simulate(model.assign(**{"cubic_stiffness.k3": 0.5 - step}), t, u, knots=knots, **TOL).pow(2).sum()
     assert float(gradient) == pytest.approx(float(up - down) / (2 * step), rel=1e-3)
+
+
+def test_effects_with_memory_append_their_states_after_the_physics():
+    model = Oscillator() + CubicStiffness(1.0) + Hysteresis(k=1.0, gamma=2.0) + InputLag(tau=0.1)
+    assert model.state_names == ("position", "velocity", "hysteresis.z", "input_lag.u_lag")
+    assert torch.equal(model.initial_state(2), torch.zeros(2, 4))
+    assert "state hysteresis.z ([x]): hysteretic displacement, starts at 0" in model.describe()
+    x0 = torch.tensor([[0.3, -0.1]])
+    assert torch.equal(complete_state(model, x0, 1), torch.tensor([[0.3, -0.1, 0.0, 0.0]]))  # the base's states
+    whole = torch.ones(1, 4)
+    assert complete_state(model, whole, 1) is whole
+    with pytest.raises(ValueError, match="x0 has 5 states, but .* has 4"):
+        complete_state(model, torch.ones(1, 5), 1)
+    with pytest.raises(TypeError, match="carries effect states .*call derivative"):
+        model.acceleration(torch.zeros(()), torch.zeros(3), torch.zeros(3), torch.zeros(3))
+
+
+def test_a_base_state_is_completed_wherever_it_is_passed(grid):
+    """simulate from the base's x0 equals simulate from the whole state with the effect's state at its initial."""
+    u = pseudorandom(grid, 1.0, seed=2)
+    model = Oscillator(zeta=0.3, omega0=2.0) + Hysteresis(k=1.0, gamma=2.0, delta=0.5)
+    with torch.no_grad():
+        short = simulate(model, grid, u, torch.tensor([[0.2, 0.0]]), substeps=2)
+        whole = simulate(model, grid, u, torch.tensor([[0.2, 0.0, 0.0]]), substeps=2)
+    assert torch.equal(short, whole)
+
+
+def test_the_input_lag_is_off_at_zero_and_for_a_negative_tau(grid):
+    u = pseudorandom(grid, 1.0, seed=3)
+    base = Oscillator(zeta=0.3, omega0=2.0)
+    with torch.no_grad():
+        exact = simulate(base, grid, u)
+        for tau in (0.0, -0.5):
+            lagged = simulate(base + InputLag(tau=tau), grid, u, method="rk4", substeps=8)
+            torch.testing.assert_close(lagged, exact, rtol=0, atol=1e-7)  # RK4 at h/8 against the exact path
+
+
+def test_the_input_lag_needs_a_single_input():
+    class TwoInputs(Oscillator):
+        input_dim = 2
+
+    with pytest.raises(TypeError, match="input_lag lags a single input; TwoInputs has 2"):
+        TwoInputs() + InputLag()
+
+
+def test_an_effect_with_states_but_no_dynamics_is_refused_by_name():
+    class Forgetful(AbstractEffect):
+        name = "forgetful"
+        own_states = (EffectState("w"),)
+
+    with pytest.raises(NotImplementedError, match="forgetful declares own_states and must implement state_rate"):
+        simulate(Oscillator() + Forgetful(), torch.arange(5.0), torch.zeros(1, 5, 1), substeps=1)

@@ -100,7 +100,8 @@ class EffectEvidence:
     """One candidate's evidence: its first-order score and, if refitted, its refitted model's errors.
 
     ``improvement`` is the baseline's criterion minus the candidate's (positive: better). ``failure``: why a
-    shortlisted refit has no result (its optimum fails the step check, :mod:`torchpaml._fit.resolution`).
+    shortlisted refit has no result (its optimum fails the step check, :mod:`torchpaml._fit.resolution`), or why
+    the candidate was not scored (its own states blow up at zero strength).
     """
 
     effect: str
@@ -164,6 +165,29 @@ def score_model(
                       (sse / norm) ** 0.5, value, physics, dict(fit.uncertainty.std), fit.uncertainty.warning,
                       fit.initial_states, [physics.initial_state(1)[0] if x0 is None else x0 for x0 in starts],
                       outputs)
+
+
+class _Engines:
+    """The probe engine for each candidate, each built once, with the base's own output it computes (the
+    reference of the zero-strength check): the tangent-linear model around a linear base for an effect
+    without states of its own, else RK4 secants."""
+
+    def __init__(self, base, train: list[Experiment], initial_states: list[torch.Tensor], scale: float):
+        self.base, self.train, self.initial_states, self.scale = base, train, initial_states, scale
+        self.built: dict[str, tuple[TangentLinear | Secant, torch.Tensor] | None] = {}
+
+    def of(self, effect: AbstractEffect) -> tuple[TangentLinear | Secant, torch.Tensor]:
+        kind = "secant" if effect.own_states else "linear"
+        if kind == "linear" and kind not in self.built:
+            self.built[kind] = self._with_reference(TangentLinear.of(self.base, self.train, self.initial_states))
+        if self.built.get(kind) is None:
+            kind = "secant"
+            if kind not in self.built:
+                self.built[kind] = self._with_reference(Secant(self.base, self.train, self.initial_states))
+        return self.built[kind]
+
+    def _with_reference(self, engine):
+        return None if engine is None else (engine, engine.outputs(self.base) / self.scale)
 
 
 def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experiment], probe: float,
@@ -340,18 +364,32 @@ def rank_missing_effects(
         return Ranking(baseline, [], rule, skipped, initial_state)
     scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
     log.info("scoring %d candidates to first order", len(candidates))
-    engine = TangentLinear.of(base, train, fit.initial_states) or Secant(base, train, fit.initial_states)
-    reference = engine.outputs(base) / scale  # the base's own output, from the trajectory the engine already holds
+    engines = _Engines(base, train, fit.initial_states, scale)
     entries, extended_models = [], {}
     for candidate in candidates:
-        extended = copy.deepcopy(base) + copy.deepcopy(candidate)
         strength = f"{candidate.name}.{candidate.strength}"
-        score, order, start, move = _first_order(extended, strength, fit, train, probe, reference, engine)
+        engine, reference = engines.of(candidate)
+        best, failure = None, None
+        for setting in candidate.starts(train):  # the effect's shapes to start from: the best first-order score wins
+            extended = (copy.deepcopy(base) + copy.deepcopy(candidate)).assign(
+                **{f"{candidate.name}.{name}": value for name, value in setting.items()})
+            try:
+                result = _first_order(extended, strength, fit, train, candidate.probe(train) or probe, reference,
+                                      engine)
+            except SimulationError as error:  # its own states blow up at zero strength: a stiff start
+                failure = f"not scored: the model blows up at zero strength from {setting or 'its defaults'}: {error}"
+                continue
+            if best is None or result[0] > best[1][0]:
+                best = extended, result
+        if best is None:
+            entries.append(EffectEvidence(candidate.name, candidate.equation, 0.0, 1, 0.0, failure=failure))
+            continue
+        extended, (score, order, start, move) = best
         entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start))
         extended_models[candidate.name] = (extended, strength, move)
     by_score = sorted(entries, key=lambda e: -e.score)
     ftol = REFIT_CRITERION_STEP / sum(r.y.numel() for r in train)
-    for entry in by_score[:shortlist]:
+    for entry in [e for e in by_score if e.effect in extended_models][:shortlist]:
         log.info("refitting %s + %s", base.display_name, entry.effect)
         extended, strength, move = extended_models[entry.effect]
         try:

@@ -1,6 +1,6 @@
 """Physics models as ``nn.Module``s with named, constrained physical parameters, and effects to add to them."""
 
-from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
+from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, complete_state, state_vector
 from torchpaml._physics.composed import ComposedModel, compose
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import TermLibrary
@@ -11,6 +11,10 @@ from torchpaml._physics.effects import (
     CoulombFriction,
     CubicStiffness,
     DeadZone,
+    DynamicFriction,
+    EffectState,
+    Hysteresis,
+    InputLag,
     InputSaturation,
     OutputSaturation,
     PendulumRestoring,
@@ -41,6 +45,11 @@ __all__ = [
     "InputSaturation",
     "OutputSaturation",
     "DeadZone",
+    "Hysteresis",
+    "DynamicFriction",
+    "InputLag",
+    "EffectState",
+    "complete_state",
     "DiscoveredForce",
     "TermLibrary",
 ]

@@ -46,13 +46,14 @@ from __future__ import annotations
 import math
 
 import torch
-from torch import nn
 
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
-from torchpaml._physics.base import SecondOrderPhysics, state_vector
+from torchpaml._physics.effect import AbstractEffect, EffectState
+from torchpaml._physics.memory_effects import DynamicFriction, Hysteresis, InputLag
 
 __all__ = [
     "AbstractEffect",
+    "EffectState",
     "CubicStiffness",
     "QuadraticStiffness",
     "PendulumRestoring",
@@ -64,6 +65,9 @@ __all__ = [
     "DeadZone",
     "EFFECTS",
     "default_effects",
+    "Hysteresis",
+    "DynamicFriction",
+    "InputLag",
 ]
 
 
@@ -72,61 +76,6 @@ def _tanh_ratio(s: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
     small = (s * z).abs() < 1e-4
     safe = torch.where(s.abs() < 1e-12, torch.ones_like(s), s)
     return torch.where(small, z - s**2 * z**3 / 3, torch.tanh(safe * z) / safe)
-
-
-class AbstractEffect(nn.Module):
-    """An effect added to physics with ``+`` (module docstring). Override any of the four hooks:
-
-    * ``force(physics, x, v, u)``: an extra acceleration (batch,) from x, v, u (batch,); second-order
-      (mechanical) physics only, where it enters the velocity equation;
-    * ``rate(physics, x, u)``: an extra term of $\\dot x$, (batch, n_state) from x (batch, n_state) and
-      u (batch, n_input), for any physics; :meth:`on_state` builds it for one named state equation;
-    * ``input_map(u)`` and ``output_map(y)``: elementwise transforms of the signals, for any physics.
-
-    Defaults: no force, no rate, identity maps. ``physics`` is the base model, for effects that scale
-    with its parameters. :meth:`applies_to` says why an effect cannot be added to a physics.
-    """
-
-    name: str = ""
-    equation: str = ""
-    #: the state names the effect's ``rate`` needs in the base physics (checked by :meth:`applies_to`)
-    states: tuple[str, ...] = ()
-    #: fixed parameters that set the effect's shape (a smoothing width), which the ranking may free
-    #: when the data asks for it (:func:`~torchpaml._diagnostics.rank_missing_effects`)
-    shape: tuple[str, ...] = ()
-
-    @property
-    def strength(self) -> str:
-        """The strength parameter: the first declared one. At strength 0 the effect must leave the model unchanged."""
-        return next(iter(self._physical))
-
-    def applies_to(self, physics: nn.Module) -> str | None:
-        """Why this effect cannot be added to ``physics`` (the base model), or ``None`` if it can."""
-        if type(self).force is not AbstractEffect.force and not isinstance(physics, SecondOrderPhysics):
-            return (f"{self.name} is a force, which acts on second-order (mechanical) physics with state (position, "
-                    f"velocity); {physics.display_name} is not a SecondOrderPhysics")
-        missing = [s for s in self.states if s not in physics.state_names]
-        if missing:
-            return (f"{self.name} acts on the state(s) {missing}, which {physics.display_name} does not have "
-                    f"(its states: {list(physics.state_names)})")
-        return None
-
-    def force(self, physics: nn.Module, x: torch.Tensor, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor | None:
-        return None
-
-    def rate(self, physics: nn.Module, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor | None:
-        return None
-
-    def input_map(self, u: torch.Tensor) -> torch.Tensor:
-        return u
-
-    def output_map(self, y: torch.Tensor) -> torch.Tensor:
-        return y
-
-    @staticmethod
-    def on_state(physics: nn.Module, x: torch.Tensor, terms: dict[str, torch.Tensor]) -> torch.Tensor:
-        """A ``rate`` (batch, n_state) that adds ``terms[name]`` (batch,) to the equation of each named state."""
-        return state_vector([terms.get(name, torch.zeros_like(x[..., 0])) for name in physics.state_names])
 
 
 class CubicStiffness(AbstractEffect):
@@ -266,7 +215,7 @@ class DeadZone(AbstractEffect):
 EFFECTS: dict[str, type[AbstractEffect]] = {
     cls.name: cls
     for cls in (CubicStiffness, QuadraticStiffness, PendulumRestoring, CoulombFriction, QuadraticDamping,
-                InputSaturation, OutputSaturation, ConstantForce, DeadZone)
+                InputSaturation, OutputSaturation, ConstantForce, DeadZone, Hysteresis, DynamicFriction, InputLag)
 }
 
 

@@ -13,7 +13,8 @@ from collections.abc import Sequence
 
 import torch
 
-from torchpaml._errors import DataError
+from torchpaml._errors import DataError, SimulationError
+from torchpaml._physics.base import complete_state
 from torchpaml._simulate.lti import simulate_lti, uniform_step
 from torchpaml._simulate.shooting import solve_rk4
 from torchpaml._simulate.simulator import checked_output
@@ -117,11 +118,25 @@ class Secant:
         parts = []
         with torch.no_grad():
             for t, u, start, hold, guess in self.records:
+                start = complete_state(extended, start, 1)  # an effect's own states start at their declared values
                 states = solve_rk4(extended, t, u, start, sensitivities=False, guess=guess, hold=hold).trajectory
                 parts.append(checked_output(extended.output(states, u), t).flatten())
         return torch.cat(parts)
 
     def probes(self, extended, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
         """The outputs with the strength ``name`` at each of ``values``; ``None`` where its constraint forbids
-        the value."""
-        return [self.outputs(extended) if assigned(extended, name, value) else None for value in values]
+        the value or the model blows up at it; raises :class:`~torchpaml._errors.SimulationError` where it blows up
+        at strength 0."""
+        return [self._output_at(extended, name, value) for value in values]
+
+    def _output_at(self, extended, name: str, value: float) -> torch.Tensor | None:
+        """The outputs at strength ``value``; ``None`` where its constraint forbids it or the simulation blows up at a
+        strength other than 0 (an unstable sign of the strength: a negative lag)."""
+        if not assigned(extended, name, value):
+            return None
+        try:
+            return self.outputs(extended)
+        except SimulationError:
+            if value == 0.0:
+                raise
+            return None
