@@ -42,3 +42,17 @@ def test_residual_that_follows_the_input_fails_independence_at_the_right_lag(rng
 def test_the_record_must_be_longer_than_the_lags():
     with pytest.raises(ValueError, match="above 2\\*lags"):
         residual_analysis(np.ones(40), np.ones(40))
+
+
+def test_the_linear_share_is_the_variance_a_filter_of_the_input_explains(rng):
+    """A residual = an FIR filter of a white input (variance 1.25) + independent noise (variance 1): the Wiener
+    filter explains 1.25 / 2.25 of it; independent of the input, only the chance fit of 26 taps to N samples,
+    about 26 / N. Sampling error ~ 1/sqrt(N) = 0.014."""
+    u = rng.standard_normal(N)
+    filtered = sps.lfilter([1.0, 0.5], [1.0], u)  # variance 1 + 0.25
+    assert residual_analysis(u, filtered + rng.standard_normal(N)).linear_share == pytest.approx(1.25 / 2.25,
+                                                                                                 abs=0.03)
+    # exact but for the biased (1/N) correlation estimates' end effects, O(taps/N) = 0.005
+    assert residual_analysis(u, filtered).linear_share == pytest.approx(1.0, abs=5e-3)
+    assert residual_analysis(u, rng.standard_normal(N)).linear_share < 0.02
+    assert residual_analysis(np.zeros(N), rng.standard_normal(N)).linear_share == 0.0

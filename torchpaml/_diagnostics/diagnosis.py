@@ -158,7 +158,7 @@ def _hybrid(step: ModelScore, train: list[Experiment], validation: list[Experime
     bound = max(whiteness.cross_correlation_bound, NOISE_CORRELATION)
     noise = int((abs(whiteness.cross_correlation) > bound).sum()) <= WHITE_SHARE * len(whiteness.cross_lags)
     adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
-                               residual_white=noise)
+                               residual_white=noise, linear_share=whiteness.linear_share)
     return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy)
 
 

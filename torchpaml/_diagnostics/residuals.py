@@ -8,6 +8,10 @@ formula; $P = 1$ when either signal is white). Here
 $r_{ab}(\tau) = \frac1N\sum_t a(t+\tau)\,b(t)$ after removing the means. A correlation outside
 the bounds says the model misses dynamics: $\rho_{ee}$ shows unmodelled dynamics of any kind,
 and $\rho_{ue}$ at positive lags shows dynamics from the input that the model does not reproduce.
+
+An effect size beside the bounds: the share of the residual's variance that the best causal linear filter
+of the input over lags 0..L explains (the Wiener filter $a$ of the normal equations $R_{uu} a = r_{eu}$,
+$R_{uu}$ the Toeplitz matrix of $r_{uu}(0..L)$), ``linear_share`` $= a^\top r_{eu} / r_{ee}(0) \in [0, 1]$.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-from scipy import signal as sps
+from scipy import linalg, signal as sps
 from scipy import stats
 
 __all__ = ["ResidualAnalysis", "residual_analysis"]
@@ -37,6 +41,7 @@ class ResidualAnalysis:
     cross_correlation: np.ndarray
     cross_correlation_bound: float
     confidence: float
+    linear_share: float
 
     @property
     def autocorrelation_outside(self) -> np.ndarray:
@@ -75,4 +80,13 @@ def residual_analysis(u, e, lags: int = 25, confidence: float = 0.99) -> Residua
         cross_correlation=cross,
         cross_correlation_bound=z * np.sqrt(max(bartlett, 0.0) / n),
         confidence=confidence,
+        linear_share=_linear_share(r_uu[zero : zero + lags + 1], r_ue[zero : zero + lags + 1], r_ee[zero]),
     )
+
+
+def _linear_share(r_uu: np.ndarray, r_eu: np.ndarray, r_ee: float) -> float:
+    """The Wiener filter's explained share $a^\top r_{eu} / r_{ee}(0)$ (module docstring); 0 for a zero input."""
+    if r_uu[0] <= 0 or r_ee <= 0:
+        return 0.0
+    taps = linalg.solve_toeplitz(r_uu, r_eu)
+    return float(np.clip(taps @ r_eu / r_ee, 0.0, 1.0))

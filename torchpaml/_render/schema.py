@@ -49,7 +49,8 @@ def hybrid_to_dict(hybrid: HybridScore) -> dict:
     """One row of ``hybrid``: a rung with the Chebyshev residual on top, and the inadequacy alarm's verdict."""
     return {"model": hybrid.model, "nrmse_train": hybrid.hybrid_train, "nrmse_validation": hybrid.hybrid_validation,
             "physics_nrmse_train": hybrid.physics_train, "physics_nrmse_validation": hybrid.physics_validation,
-            "inadequate": hybrid.adequacy.inadequate, "message": hybrid.adequacy.message}
+            "inadequate": hybrid.adequacy.inadequate, "covering": hybrid.adequacy.covering,
+            "message": hybrid.adequacy.message}
 
 
 def _error(std: float) -> float | None:
