@@ -1,0 +1,43 @@
+"""The Bouc-Wen benchmark (../shared/data/boucwen): the data, the user's linear physics, the official metric.
+
+Skipped cleanly when the data are absent. The whole experiment, ``python experiments/boucwen/run.py --out DIR``
+(about 100 s), runs in the slow lane.
+"""
+
+import pytest
+
+from experiment_modules import load
+from torchpaml import Experiment, fit_physics
+
+boucwen = load("boucwen/run.py")
+springs = load("boucwen/mass_spring_damper.py")
+pytestmark = pytest.mark.skipif(not (boucwen.DATA / f"{boucwen.TRAIN}.csv").is_file(),
+                                reason="the Bouc-Wen data (../shared/data/boucwen) are absent")
+
+
+def test_the_linear_mass_spring_damper_on_the_official_test_signals():
+    train = Experiment.from_csv(boucwen.DATA / f"{boucwen.TRAIN}.csv")
+    assert len(train.t) == 40960 and float(train.dt) == pytest.approx(1 / 750)
+    physics = springs.frequency_response_start(train)
+    fit_physics(physics, train)
+    frequency = (physics.physical_parameters()["k"] / physics.physical_parameters()["m"]) ** 0.5 / 6.2832
+    assert 35 < frequency < 45  # the small-amplitude resonance: the linear 35.6 Hz stiffened by the hysteresis
+    tests = {name: Experiment.from_csv(boucwen.DATA / f"{name}.csv", name=name) for name in boucwen.TESTS}
+    rmse = boucwen.test_rmse(physics, tests)
+    # measured 1.74e-4 m and 1.54e-4 m: a quarter of the output's RMS (6.7e-4 m) on the test multisine
+    assert 1.2e-4 < rmse["test_multisine"] < 2.2e-4 and 1.0e-4 < rmse["test_sinesweep"] < 2.0e-4
+
+
+@pytest.mark.slow
+def test_the_ladder_finds_the_hysteresis_and_beats_the_best_published_figure(tmp_path):
+    result = boucwen.main(["--out", str(tmp_path)])
+    assert result["found"][0] == "hysteresis"
+    final = result["models"][-1]
+    assert final["rmse"]["test_multisine"] <= 1.87e-5  # PNLSS with hysteresis decoupling; measured 4.5e-6 m
+    assert final["rmse"]["test_sinesweep"] <= 1.87e-5
+    assert result["seconds"] < 300
+    truth = {"m": 2.0, "c": 10.0, "k": 5e4, "hysteresis.k": 2.5e4, "hysteresis.gamma": 800.0,
+             "hysteresis.delta": -1100.0}  # the data's README: alpha / m_L, beta * gamma, beta * delta
+    for name, value in truth.items():
+        assert final["parameters"][name] == pytest.approx(value, rel=0.05), name
+    assert (tmp_path / "boucwen.json").is_file()
