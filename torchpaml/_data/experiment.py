@@ -11,8 +11,7 @@ import numpy as np
 import torch
 
 from torchpaml._errors import DataError
-from torchpaml._simulate.lti import check_hold
-from torchpaml._simulate.simulator import uniform_step
+from torchpaml._grid import check_hold, uniform_step
 
 __all__ = ["Experiment"]
 

@@ -43,7 +43,7 @@ from torch import nn
 from torchpaml._errors import DomainError
 from torchpaml._residual.base import AbstractResidual
 from torchpaml._simulate.lti import simulate_lti
-from torchpaml._simulate.simulator import uniform_step
+from torchpaml._grid import uniform_step
 
 __all__ = ["ChebyshevHammerstein", "chebyshev_t"]
 

@@ -2,8 +2,9 @@
 
 from torchpaml._simulate.iir import iir_filter
 from torchpaml._simulate.interpolation import LinearInterpolant
-from torchpaml._simulate.lti import HOLDS, discretize, simulate_lti
+from torchpaml._grid import HOLDS, uniform_step
+from torchpaml._simulate.lti import discretize, simulate_lti
 from torchpaml._simulate.sensitivity import output_jacobian, raw_parameters, simulate_record
-from torchpaml._simulate.simulator import simulate, uniform_step
+from torchpaml._simulate.simulator import simulate
 
 __all__ = ["iir_filter", "LinearInterpolant", "HOLDS", "discretize", "simulate_lti", "simulate", "uniform_step", "output_jacobian", "raw_parameters", "simulate_record"]

@@ -26,23 +26,11 @@ from __future__ import annotations
 import torch
 
 from torchpaml._errors import DataError
+from torchpaml._grid import check_hold, uniform_step
 
 from torchpaml._simulate.iir import iir_filter
 
-__all__ = ["HOLDS", "check_hold", "discrete_response", "discretize", "exact_step", "foh_exponent", "faddeev_leverrier",
-           "simulate_lti", "uniform_step"]
-
-#: How the input moves between two samples: ``"foh"`` (first-order hold, linear: the default) or ``"zoh"``
-#: (zero-order hold, constant until the next sample).
-HOLDS = ("foh", "zoh")
-
-
-def check_hold(hold: str) -> str:
-    """``hold`` itself; a ``ValueError`` naming the choices if it is not one of :data:`HOLDS`."""
-    if hold not in HOLDS:
-        raise ValueError(f"hold must be 'foh' (the input linear between samples) or 'zoh' (held constant until the "
-                         f"next sample), got {hold!r}")
-    return hold
+__all__ = ["discrete_response", "discretize", "exact_step", "foh_exponent", "faddeev_leverrier", "simulate_lti"]
 
 
 def foh_exponent(A: torch.Tensor, B: torch.Tensor, h: float, ramp: bool = True) -> torch.Tensor:
@@ -160,22 +148,6 @@ def _free_response(CN: torch.Tensor, poles: torch.Tensor, x0: torch.Tensor, u: t
     numerator = torch.cat([numerator, torch.zeros_like(numerator[:, :1])], dim=1)
     free = iir_filter(impulse, numerator, poles.expand(batch * p, n))
     return free.reshape(T, batch, p).transpose(0, 1)
-
-
-def uniform_step(t: torch.Tensor, rtol: float = 1e-6) -> float:
-    """The sampling interval of a uniform grid ``t`` (time,); raises :class:`DataError` if not uniform."""
-    if t.dim() != 1 or len(t) < 2:
-        raise DataError(f"time must be a 1-D tensor of at least 2 samples, got shape {tuple(t.shape)}")
-    dt = torch.diff(t)
-    h = float(dt.mean())
-    if not bool(torch.all(dt > 0)):
-        raise DataError("time must be strictly increasing; sort the samples and drop duplicates")
-    if float((dt - h).abs().max()) > rtol * h:
-        raise DataError(
-            f"uniform sampling is required here, but the time steps range from {float(dt.min()):.6g} to "
-            f"{float(dt.max()):.6g} s; resample onto a uniform grid, or use an ODE method (method='dopri5')"
-        )
-    return h
 
 
 def exact_step(physics, t: torch.Tensor) -> float | None:

@@ -15,7 +15,8 @@ import torch
 
 from torchpaml._errors import DataError, SimulationError
 from torchpaml._physics.base import complete_state
-from torchpaml._simulate.lti import simulate_lti, uniform_step
+from torchpaml._grid import uniform_step
+from torchpaml._simulate.lti import simulate_lti
 from torchpaml._simulate.shooting import solve_rk4
 from torchpaml._simulate.simulator import checked_output
 

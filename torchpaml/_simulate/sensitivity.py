@@ -36,10 +36,11 @@ import torch
 from torch import nn
 from torch.func import functional_call
 
+from torchpaml._grid import check_hold
 from torchpaml._physics.base import complete_state
+from torchpaml._simulate.lti import discrete_response, discretize, exact_step, foh_exponent
 from torchpaml._simulate.shooting import RK4Solution, solve_rk4
-from torchpaml._simulate.lti import check_hold, discrete_response, discretize, foh_exponent
-from torchpaml._simulate.simulator import checked_output, exact_step
+from torchpaml._simulate.simulator import checked_output
 
 if TYPE_CHECKING:
     from torchpaml._data import Experiment

@@ -51,7 +51,8 @@ import torch
 from torch.nn.utils import parametrize
 
 from torchpaml._errors import SimulationError
-from torchpaml._simulate.lti import check_hold, exact_step, simulate_lti
+from torchpaml._grid import check_hold
+from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.scan import linear_recurrence
 
 __all__ = ["RK4Solution", "SEGMENT_STEPS", "simulate_rk4", "solve_rk4"]

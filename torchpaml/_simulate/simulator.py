@@ -8,12 +8,13 @@ import torch
 
 from torchpaml._errors import DataError, SimulationError
 from torchpaml._physics.base import complete_state
-from torchpaml._simulate.lti import check_hold, exact_step, simulate_lti, uniform_step
+from torchpaml._grid import check_hold, uniform_step
+from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.ode import simulate_ode
 from torchpaml._simulate.shooting import SEGMENT_STEPS, simulate_rk4
 from torchpaml._simulate.step_control import simulate_to_tolerance
 
-__all__ = ["ADAPTIVE_RTOL", "RK4_RTOL", "checked_output", "exact_step", "simulate", "uniform_step"]
+__all__ = ["ADAPTIVE_RTOL", "RK4_RTOL", "checked_output", "simulate"]
 
 #: Default ``rtol`` of RK4's step doubling: the output's relative error, as scipy's ``solve_ivp`` defaults to
 #: (the gap bounds the error of the returned, finer output; measured 15 to 20 times smaller on smooth physics).
