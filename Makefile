@@ -2,7 +2,7 @@
 PYTHON ?= python3
 DEMO ?= results/demo
 
-.PHONY: install install-docs install-fleet demo fleet paper test test-all docs tables bench contrast silverbox tanks discovery
+.PHONY: install install-docs install-fleet demo fleet paper test test-all docs tables bench contrast silverbox tanks boucwen discovery
 
 install:
 	# torch==2.13.0 first: a CPU build; a bare `torch` requirement would pull a multi-GB CUDA build.
@@ -71,3 +71,6 @@ silverbox: install
 tanks: install
 	$(PYTHON) experiments/cascaded_tanks/run.py --out results/cascaded_tanks
 	$(PYTHON) experiments/cascaded_tanks/reference.py
+
+boucwen: install
+	$(PYTHON) experiments/boucwen/run.py --out results/boucwen

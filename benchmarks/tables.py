@@ -4,7 +4,7 @@
 
 Reads what the experiments wrote under ``--results`` (``demo/diagnosis.json``,
 ``paper/results.json``, ``contrast/contrast.json``, ``discovery/discovery_cases.json``,
-``silverbox/silverbox.json``, ``cascaded_tanks/cascaded_tanks.json``) and prints one markdown table
+``silverbox/silverbox.json``, ``cascaded_tanks/cascaded_tanks.json``, ``boucwen/boucwen.json``) and prints one markdown table
 per file found. With ``--write PAGE ...`` it replaces, in each page, the text between
 ``<!-- table:NAME -->`` and ``<!-- /table:NAME -->`` by the table NAME, and leaves the tables whose JSON
 is missing as they are. ``make tables`` writes every page of the docs that holds such markers.
@@ -74,6 +74,13 @@ def tanks(t: dict) -> str:
     return "\n".join(lines) + f"\n\nFound: {', '.join(t['found'])}; {t['seconds']:.0f} s.{discovered}"
 
 
+def boucwen(b: dict) -> str:
+    lines = ["| model | test_multisine | test_sinesweep |", "|---|---|---|"]
+    lines += [f"| {m['model']} | {m['rmse']['test_multisine']:.3g} m | {m['rmse']['test_sinesweep']:.3g} m |"
+              for m in b["models"]]
+    return "\n".join(lines) + f"\n\nFound: {', '.join(b['found']) or 'nothing'}; {b['seconds']:.0f} s."
+
+
 TABLES: dict[str, tuple[str, Callable]] = {
     "demo": ("demo/diagnosis.json", demo),
     "paper": ("paper/results.json", paper_table),
@@ -81,6 +88,7 @@ TABLES: dict[str, tuple[str, Callable]] = {
     "discovery": ("discovery/discovery_cases.json", discovery),
     "silverbox": ("silverbox/silverbox.json", silverbox),
     "tanks": ("cascaded_tanks/cascaded_tanks.json", tanks),
+    "boucwen": ("boucwen/boucwen.json", boucwen),
 }
 
 

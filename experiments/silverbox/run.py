@@ -10,7 +10,7 @@ The official split (``shared/data/silverbox/README.md``): ``train_multisine`` fo
 
 1. The physics: :class:`~torchpaml._physics.Oscillator`, $\ddot y + 2\zeta\omega_0\dot y + \omega_0^2 y = g u$,
    all three learnable, started from the measured frequency response (:func:`frequency_response_start`).
-2. :func:`~torchpaml._diagnostics.diagnose` with the nine library effects: the ladder adds what the
+2. :func:`~torchpaml._diagnostics.diagnose` with the twelve library effects: the ladder adds what the
    validation asks for; the Chebyshev residual goes on the first and the last rung.
 3. Every rung is scored on the test records.
 4. With ``--discover``, the discovery of a force outside the library

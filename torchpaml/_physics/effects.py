@@ -7,7 +7,8 @@ $$ \dot x = f_{\text{base}}(t, x, \tilde u) + \sum_e R_e(x, u) + e_v \sum_e F_e(
    \tilde u = \text{the input maps of } u, \qquad y = \text{the output maps of } h_{\text{base}}(x, \tilde u), $$
 
 through a *force* $F_e$ on the velocity equation (second-order physics only), a *rate* $R_e$ on
-named state equations, or the input and output maps (any physics). The library's nine:
+named state equations, or the input and output maps (any physics). The library's nine static ones (the three with memory are in
+:mod:`~torchpaml._physics.memory_effects`):
 
 ==================== ========================================== ===========================
 name                 term                                       parameters (start)
