@@ -6,9 +6,10 @@ for training and validation (the regime where the residual, a filter of the inpu
 
 import torch
 
-from torchpaml import Simulated, default_effects, diagnose
+from torchpaml import (ConstantForce, InputLag, QuadraticStiffness, Simulated, default_effects, diagnose,
+                       rank_missing_effects)
 
-from test_hidden_effects import CASES, physics, truth
+from test_hidden_effects import CASES, physics, records, truth
 
 
 def lagged_records():
@@ -33,3 +34,16 @@ def test_with_the_lag_among_the_candidates_the_ladder_adds_it_and_the_caveat_goe
     assert diagnosis.ladder.added == ["input_lag"]
     assert diagnosis.ladder.final.nrmse_validation < 1.5 * 0.02
     assert not diagnosis.hybrids[-1].adequacy.covering
+
+
+def test_a_lag_the_data_do_not_have_is_a_failed_refit_not_a_failed_diagnosis():
+    """On the oscillator with its constant force already found, the data hold no lag: its refit drives tau
+    towards 0, a rate beyond what RK4 integrates. That candidate fails with the reason; the ranking goes on."""
+    train, validation, _ = records(truth("constant_force", 0.5), 1.0)
+    physics_with_force = (physics() + ConstantForce()).assign(**{"constant_force.f0": 0.5})
+    ranking = rank_missing_effects(physics_with_force, [InputLag(), QuadraticStiffness()], train, validation,
+                                   shortlist=2)
+    lag = next(e for e in ranking.entries if e.effect == "input_lag")
+    assert lag.refit is None and lag.failure.startswith("refit blew up"), lag.failure
+    assert ranking.recommended is None  # and the other candidate was refitted, and not accepted
+    assert next(e for e in ranking.entries if e.effect == "quadratic_stiffness").refit is not None

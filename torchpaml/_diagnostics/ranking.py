@@ -100,7 +100,8 @@ class EffectEvidence:
     """One candidate's evidence: its first-order score and, if refitted, its refitted model's errors.
 
     ``improvement`` is the baseline's criterion minus the candidate's (positive: better). ``failure``: why a
-    shortlisted refit has no result (its optimum fails the step check, :mod:`torchpaml._fit.resolution`), or why
+    shortlisted refit has no result (its optimum fails the step check, :mod:`torchpaml._fit.resolution`, or its
+    simulation blows up: a lag driven towards 0 is a rate beyond what RK4 integrates), or why
     the candidate was not scored (its own states blow up at zero strength).
     """
 
@@ -397,6 +398,9 @@ def rank_missing_effects(
                                  move, ftol)
         except ResolutionError as error:
             entry.failure = f"refit unresolved: {error}"
+            continue
+        except SimulationError as error:  # the refit drove a rate of the effect beyond what RK4 integrates
+            entry.failure = f"refit blew up: {error}; parameters {extended.physical_parameters()}"
             continue
         entry.refit = score_model(extended, refit, validation, rule, initial_state)
         entry.improvement = baseline.criterion - entry.refit.criterion
