@@ -239,6 +239,33 @@ def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experime
     return score, order, probe * (beta if order == 1 else beta ** (1 / order)), move
 
 
+def _by_promise(base, candidate: AbstractEffect, train: list[Experiment], fit: PhysicsEstimate, delta: float,
+                reference: torch.Tensor, engine: TangentLinear | Secant, scale: float) -> list[tuple[dict[str, float], torch.Tensor]]:
+    r"""``(setting, base + candidate)`` for each of the candidate's starts (:meth:`~AbstractEffect.starts`), the most
+    promising first: by the unsigned share of the residual that one probe at strength ``delta`` explains,
+    $(\tilde d^\top r)^2 / (\|\tilde d\|^2 \|r\|^2)$ with $d$ taken against the base's output. One probe per start
+    instead of :func:`_first_order`'s four; a start whose probe blows up comes last."""
+    name = f"{candidate.name}.{candidate.strength}"
+    models = []
+    for setting in candidate.starts(train):
+        models.append((setting, (copy.deepcopy(base) + copy.deepcopy(candidate)).assign(
+            **{f"{candidate.name}.{key}": value for key, value in setting.items()})))
+    if len(models) == 1:
+        return models
+    J, r = fit.jacobian, fit.residual
+
+    def promise(model) -> float:
+        out = engine.probes(model, name, (delta,))[0]
+        if out is None:
+            return -1.0
+        d = out / scale - reference
+        projected = d - J @ torch.linalg.lstsq(J, d[:, None]).solution[:, 0]
+        energy = float(projected @ projected)
+        return 0.0 if energy == 0.0 else float(projected @ r) ** 2 / (energy * float(r @ r))
+
+    return sorted(models, key=lambda pair: -promise(pair[1]))
+
+
 def refit_effect(extended, name: str, start: float, train: list[Experiment], max_nfev: int, initial_state: str,
                  baseline: PhysicsEstimate | None = None, move: torch.Tensor | None = None, ftol: float = 1e-10
                  ) -> PhysicsEstimate:
@@ -370,18 +397,14 @@ def rank_missing_effects(
     for candidate in candidates:
         strength = f"{candidate.name}.{candidate.strength}"
         engine, reference = engines.of(candidate)
+        delta = candidate.probe(train) or probe
         best, failure = None, None
-        for setting in candidate.starts(train):  # the effect's shapes to start from: the best first-order score wins
-            extended = (copy.deepcopy(base) + copy.deepcopy(candidate)).assign(
-                **{f"{candidate.name}.{name}": value for name, value in setting.items()})
+        for setting, extended in _by_promise(base, candidate, train, fit, delta, reference, engine, scale):
             try:
-                result = _first_order(extended, strength, fit, train, candidate.probe(train) or probe, reference,
-                                      engine)
+                best = extended, _first_order(extended, strength, fit, train, delta, reference, engine)
+                break
             except SimulationError as error:  # its own states blow up at zero strength: a stiff start
                 failure = f"not scored: the model blows up at zero strength from {setting or 'its defaults'}: {error}"
-                continue
-            if best is None or result[0] > best[1][0]:
-                best = extended, result
         if best is None:
             entries.append(EffectEvidence(candidate.name, candidate.equation, 0.0, 1, 0.0, failure=failure))
             continue

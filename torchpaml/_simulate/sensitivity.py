@@ -37,7 +37,7 @@ from torch import nn
 from torch.func import functional_call
 
 from torchpaml._grid import check_hold
-from torchpaml._physics.base import complete_state
+from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._simulate.lti import discrete_response, discretize, exact_step, foh_exponent
 from torchpaml._simulate.shooting import RK4Solution, solve_rk4
 from torchpaml._simulate.simulator import checked_output
@@ -59,7 +59,7 @@ def raw_parameters(physics, names: Sequence[str]) -> dict[str, torch.Tensor]:
     return raw
 
 
-def simulate_record(physics, record: Experiment, x0: torch.Tensor | None = None, **options) -> torch.Tensor:
+def simulate_record(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor | None = None, **options) -> torch.Tensor:
     """The model's output on one record from ``x0`` (n_state,) or rest, (1, time, n_output), without gradients;
     the input held as the record's ``hold`` says."""
     with torch.no_grad():
@@ -164,7 +164,7 @@ def _directional(function, value: torch.Tensor, direction: torch.Tensor) -> torc
 
 
 def output_jacobian(
-    physics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
+    physics: AbstractPhysics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
     warm: dict | None = None, initial_state: bool = False, hold: str = "foh", **options
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Output and its Jacobian in the raw parameters ``names`` (module docstring).

@@ -7,7 +7,7 @@ from typing import Literal
 import torch
 
 from torchpaml._errors import DataError, SimulationError
-from torchpaml._physics.base import complete_state
+from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._grid import check_hold, uniform_step
 from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.ode import simulate_ode
@@ -24,7 +24,7 @@ ADAPTIVE_RTOL = 1e-7
 
 
 def simulate(
-    physics,
+    physics: AbstractPhysics,
     t: torch.Tensor,
     u: torch.Tensor,
     x0: torch.Tensor | None = None,
