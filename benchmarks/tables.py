@@ -76,7 +76,7 @@ def tanks(t: dict) -> str:
 
 def boucwen(b: dict) -> str:
     lines = ["| model | test_multisine | test_sinesweep |", "|---|---|---|"]
-    lines += [f"| {m['model']} | {m['rmse']['test_multisine']:.3g} m | {m['rmse']['test_sinesweep']:.3g} m |"
+    lines += [f"| {m['model']} | {m['rmse']['test_multisine']:.2e} m | {m['rmse']['test_sinesweep']:.2e} m |"
               for m in b["models"]]
     return "\n".join(lines) + f"\n\nFound: {', '.join(b['found']) or 'nothing'}; {b['seconds']:.0f} s."
 
