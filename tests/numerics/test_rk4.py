@@ -15,7 +15,7 @@ import pytest
 import torch
 from scipy.integrate import solve_ivp
 
-from torchpaml import CubicStiffness, multisine, Oscillator, simulate, SimulationError, time_grid
+from torchpaml import CubicStiffness, multisine, Oscillator, simulate, SimulationError, time_grid, WarmStart
 
 
 def _duffing(zeta=0.2, k3=2.0):
@@ -217,7 +217,7 @@ def test_simulate_warm_starts_from_the_last_solution_and_gives_the_same_output(d
         sweeps.append(1)
         original(self, *args, **kwargs)
 
-    warm = {}
+    warm = WarmStart()
     with torch.no_grad():
         cold = simulate(_duffing(k3=2.1), t, u, method="rk4")
         simulate(_duffing(k3=2.0), t, u, method="rk4", warm=warm)
@@ -229,9 +229,15 @@ def test_simulate_warm_starts_from_the_last_solution_and_gives_the_same_output(d
             simulate(_duffing(k3=2.1), t, u, method="rk4")
         finally:
             shooting._Sweep.__init__ = original
-    assert warm["states"].shape == (1, len(t), 2)
+    assert warm.states.shape == (1, len(t), 2)
     assert _relative(again, cold) < 1e-12
     assert warm_sweeps < len(sweeps)
+
+
+def test_a_warm_start_that_is_not_a_warm_start_object_is_refused(drive):
+    t, u = drive
+    with pytest.raises(TypeError, match="warm must be a torchpaml.WarmStart"):
+        simulate(_duffing(k3=2.0), t, u, method="rk4", warm={})
 
 
 def test_the_linear_base_of_a_learned_force_is_its_physics():

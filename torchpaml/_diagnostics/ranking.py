@@ -59,6 +59,7 @@ from torchpaml._metrics import mismatch
 from torchpaml._parameters import unphysical_values
 from torchpaml._simulate.sensitivity import raw_parameters, simulate_record
 from torchpaml._simulate.probes import Secant, TangentLinear, assigned
+from torchpaml._simulate.warm import WarmStart
 from torchpaml._physics.effects import AbstractEffect
 
 __all__ = ["EffectEvidence", "ModelScore", "REFIT_CRITERION_STEP", "Ranking", "rank_missing_effects", "refit_effect",
@@ -277,7 +278,7 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     or blow up). Otherwise the unknowns stay, and the strength is halved while it breaks its constraint
     or blows up the simulation, down to 0. ``ftol`` goes to :func:`~torchpaml._fit.fit_physics`.
     """
-    warm = [{} for _ in train]  # the check's simulations start the fit's first Newton solves
+    warm = [WarmStart() for _ in train]  # the check's simulations start the fit's first Newton solves
     fit = functools.partial(fit_physics, extended, train, max_nfev=max_nfev, initial_state=initial_state, ftol=ftol)
     if baseline is not None and move is not None:
         own = list(baseline.parameters)
@@ -308,9 +309,9 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0")
 
 
-def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None, warm: list[dict]) -> float:
+def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None, warm: list[WarmStart]) -> float:
     r"""The :func:`~torchpaml._metrics.mismatch` over the training records from ``states`` (or rest); inf if the
-    simulation blows up. Each record's RK4 solution is left in its dict of ``warm``."""
+    simulation blows up. Each record's RK4 solution is left in its :class:`~torchpaml.WarmStart` of ``warm``."""
     try:
         outputs = [simulate_record(physics, r, x0, warm=w).flatten()
                    for r, x0, w in zip(train, states or [None] * len(train), warm, strict=True)]

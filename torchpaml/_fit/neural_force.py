@@ -26,6 +26,7 @@ from torchpaml._fit.output_error import minimize_output_error
 from torchpaml._physics.terms import variables_of
 from torchpaml._residual.mlp import MLPRate, RateAugmented
 from torchpaml._simulate.shooting import simulate_rk4
+from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["NeuralForceFit", "fit_neural_force"]
 
@@ -75,7 +76,7 @@ def fit_neural_force(
         torch.manual_seed(seed)
         rate = MLPRate(scales, len(equations), hidden, depth)
     model = RateAugmented(frozen, rate, list(equations.values()))
-    warm = [{} for _ in records]
+    warm = [WarmStart() for _ in records]
 
     def predict() -> torch.Tensor:
         return torch.cat([model(t, u, x0, method="rk4", warm=w, hold=hold).flatten()

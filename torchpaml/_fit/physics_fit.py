@@ -41,6 +41,7 @@ from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter
 from torchpaml._parameters import record_uncertainty
 from torchpaml._physics.base import complete_state
 from torchpaml._simulate.sensitivity import output_jacobian, raw_parameters
+from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["PhysicsEstimate", "estimate_initial_state", "fit_physics"]
 
@@ -101,7 +102,7 @@ def fit_physics(
     bounds: dict[str, tuple[float, float]] | None = None,
     initial_state: Literal["rest", "estimate"] = "rest",
     start_states: Sequence[torch.Tensor] | None = None,
-    warm: Sequence[dict] | None = None,
+    warm: Sequence[WarmStart] | None = None,
     max_nfev: int = 60,
     ftol: float = 1e-10,
     **simulate_options,
@@ -117,8 +118,8 @@ def fit_physics(
             state is fitted too, an unbounded unknown per state; see ``PhysicsEstimate.initial_states``).
         start_states: with ``initial_state="estimate"``, each record's starting guess (n_state,), or of
             the base's states of ``physics + effect`` (:func:`~torchpaml._physics.complete_state`) (default: rest).
-        warm: one dict per record that carries the RK4 engine's last solution into the fit's first Newton solve
-            (``simulate(..., warm=)``, e.g. of a simulation at the start); default fresh ones.
+        warm: one :class:`~torchpaml.WarmStart` per record that carries the RK4 engine's last solution into the
+            fit's first Newton solve (``simulate(..., warm=)``, e.g. of a simulation at the start); default fresh ones.
         max_nfev: iteration limit of the trust region.
         ftol: the trust region stops when a step lowers the cost $\tfrac12\|r\|^2$ by less than this share of it
             (scipy's ``ftol``); the default fits to the last digits, a ranking's refits stop earlier.
@@ -147,7 +148,7 @@ def fit_physics(
     scale = float(torch.sqrt(sum(torch.sum(y**2) for y in targets)))
     count = {"simulations": 0}
     memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-    warm = [{} for _ in records] if warm is None else list(warm)  # each record's last solution starts the next solve
+    warm = [WarmStart() for _ in records] if warm is None else list(warm)  # each record's last solution starts the next solve
 
     def starts(x: np.ndarray) -> list[torch.Tensor | None]:
         if not estimate_x0:

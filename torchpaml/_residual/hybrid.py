@@ -13,6 +13,7 @@ from torch import nn
 
 from torchpaml._residual.base import AbstractResidual
 from torchpaml._residual.mlp import ForceAugmented, MLPForce
+from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["Hybrid"]
 
@@ -39,7 +40,7 @@ class Hybrid(nn.Module):
         """Whether the correction acts inside the ODE (a force) rather than on the output."""
         return isinstance(self.residual, MLPForce)
 
-    def forward(self, t: torch.Tensor, u: torch.Tensor, warm: dict | None = None,
+    def forward(self, t: torch.Tensor, u: torch.Tensor, warm: WarmStart | None = None,
                 **simulate_options) -> tuple[torch.Tensor, torch.Tensor]:
         y_physics = self.physics(t, u, **simulate_options)
         if self.in_ode:

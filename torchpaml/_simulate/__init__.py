@@ -6,5 +6,6 @@ from torchpaml._grid import HOLDS, uniform_step
 from torchpaml._simulate.lti import discretize, simulate_lti
 from torchpaml._simulate.sensitivity import output_jacobian, raw_parameters, simulate_record
 from torchpaml._simulate.simulator import simulate
+from torchpaml._simulate.warm import WarmStart
 
-__all__ = ["iir_filter", "LinearInterpolant", "HOLDS", "discretize", "simulate_lti", "simulate", "uniform_step", "output_jacobian", "raw_parameters", "simulate_record"]
+__all__ = ["iir_filter", "LinearInterpolant", "HOLDS", "discretize", "simulate_lti", "simulate", "uniform_step", "output_jacobian", "raw_parameters", "simulate_record", "WarmStart"]

@@ -23,6 +23,7 @@ import torch
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._simulate.shooting import simulate_rk4
 from torchpaml._simulate.simulator import simulate
+from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["forced_response"]
 
@@ -96,7 +97,7 @@ def forced_response(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
             signed = torch.cat([eps * rows, -eps * rows])
             inputs = torch.cat([u.expand(len(signed), -1, -1), signed], dim=-1)
             starts = x0.expand(len(signed), -1)
-            y = injected(t, inputs, starts, method="rk4", warm={"states": base.expand(len(signed), -1, -1)},
+            y = injected(t, inputs, starts, method="rk4", warm=WarmStart(base.expand(len(signed), -1, -1)),
                          hold=hold)
             parts.append((y[: len(rows)] - y[len(rows):]) / (2 * eps))
     return torch.cat(parts)

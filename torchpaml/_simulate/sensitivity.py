@@ -41,6 +41,7 @@ from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._simulate.lti import discrete_response, discretize, exact_step, foh_exponent
 from torchpaml._simulate.shooting import RK4Solution, solve_rk4
 from torchpaml._simulate.simulator import checked_output
+from torchpaml._simulate.warm import WarmStart
 
 if TYPE_CHECKING:
     from torchpaml._data import Experiment
@@ -165,7 +166,7 @@ def _directional(function, value: torch.Tensor, direction: torch.Tensor) -> torc
 
 def output_jacobian(
     physics: AbstractPhysics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
-    warm: dict | None = None, initial_state: bool = False, hold: str = "foh", **options
+    warm: WarmStart | None = None, initial_state: bool = False, hold: str = "foh", **options
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Output and its Jacobian in the raw parameters ``names`` (module docstring).
 
@@ -173,8 +174,8 @@ def output_jacobian(
         physics: the model.
         names: physical parameter names, p of them.
         t: (time,); u: (batch, time, n_input); x0: (batch, n_state), rest if omitted.
-        warm: a dict the caller keeps between calls on the same record (a fit's iterations): the RK4
-            path stores its converged states under ``"states"`` and starts the next Newton solve from them.
+        warm: a :class:`~torchpaml.WarmStart` the caller keeps between calls on the same record (a fit's
+            iterations): the RK4 path stores its converged states in it and starts the next Newton solve from them.
         initial_state: also differentiate in ``x0``.
         hold: ``"foh"`` or ``"zoh"``, how the input moves between samples (:func:`~torchpaml._simulate.simulate`).
         options: ``substeps``/``segment`` of the RK4 engine.

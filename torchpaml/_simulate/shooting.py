@@ -54,6 +54,7 @@ from torchpaml._errors import SimulationError
 from torchpaml._grid import check_hold
 from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.scan import linear_recurrence
+from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["RK4Solution", "SEGMENT_STEPS", "simulate_rk4", "solve_rk4"]
 
@@ -332,7 +333,7 @@ def solve_rk4(
     max_sweeps: int = 16,
     sensitivities: bool = True,
     guess: torch.Tensor | None = None,
-    warm: dict | None = None,
+    warm: WarmStart | None = None,
     hold: str = "foh",
 ) -> RK4Solution:
     """Run Newton to convergence (arguments of :func:`simulate_rk4`), without recording gradients.
@@ -343,8 +344,8 @@ def solve_rk4(
     states (those of the base of ``physics + effect``, the effects' own states then held at ``x0``), whose
     values at the segment starts start Newton. Without it, Newton starts from the linear base's exact
     trajectory (:func:`linear_guess`) where there is one, else from $x_0$ held.
-    ``warm``: a dict the caller keeps between solves of the same record (see :func:`simulate_rk4`); its
-    ``"states"``, when present, are the guess, and this solution's trajectory replaces them.
+    ``warm``: the record's :class:`~torchpaml._simulate.warm.WarmStart`; its ``states``, when set, are the
+    guess, and this solution's trajectory replaces them.
     ``hold``: ``"foh"`` or ``"zoh"`` (module docstring).
     """
     check_hold(hold)
@@ -352,8 +353,11 @@ def solve_rk4(
     if substeps < 1 or segment < 1:
         raise ValueError(f"substeps and segment must be at least 1, got substeps={substeps}, segment={segment}")
     tol = tol if tol is not None else GRADIENT_TOL if sensitivities else NEWTON_TOL
-    if warm is not None and "states" in warm:
-        guess = warm["states"]
+    if warm is not None and not isinstance(warm, WarmStart):
+        raise TypeError(f"warm must be a torchpaml.WarmStart kept per record (warm=tp.WarmStart()), got "
+                        f"{type(warm).__name__}")
+    if warm is not None and warm.states is not None:
+        guess = warm.states
     guess = guess if guess is not None else linear_guess(physics, t, u, x0[..., :_linear_states(physics, x0.shape[-1])], hold)
     if guess is not None and guess.shape[-1] < x0.shape[-1]:  # the base's states: effect states start held at x0
         held = x0[:, None, guess.shape[-1]:].expand(-1, guess.shape[1], -1)
@@ -368,13 +372,13 @@ def solve_rk4(
             # constants of the solution: no_grad stops reverse mode, detach also stops forward mode's tangents
             solution = RK4Solution(layout, states.detach(), T, None if starts is None else starts.detach())
             if warm is not None:
-                warm["states"] = solution.trajectory
+                warm.states = solution.trajectory
             return solution
         except _NotConverged:
             length *= GROWTH  # fewer, longer segments; one segment is plain sequential RK4, which always ends
 
 
-def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, warm: dict | None = None,
+def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, warm: WarmStart | None = None,
                  **options) -> torch.Tensor:
     r"""States of ``physics`` on the sample grid by RK4, parallel in time (module docstring).
 
@@ -384,9 +388,9 @@ def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, wa
         t: sample times, (time,), strictly increasing (uniform or not).
         u: input samples, (batch, time, n_input).
         x0: initial state, (batch, n_state).
-        warm: a dict the caller keeps between solves of the same record under nearby parameters (the
-            steps of a training run): the converged states are stored under ``"states"`` and start the
-            next solve's Newton, which then needs fewer sweeps.
+        warm: a :class:`~torchpaml._simulate.warm.WarmStart` the caller keeps between solves of the same record
+            under nearby parameters (the steps of a training run): the converged states are stored in it and
+            start the next solve's Newton, which then needs fewer sweeps.
         options: ``substeps`` (RK4 steps per sample interval, default the model's ``substeps``), ``segment`` (steps per
             shooting segment L, default :data:`SEGMENT_STEPS`), ``tol`` (Newton stops when every
             continuity defect is below ``tol`` times the state's scale; default :data:`NEWTON_TOL`, or

@@ -11,6 +11,7 @@ from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._grid import check_hold, uniform_step
 from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.ode import simulate_ode
+from torchpaml._simulate.warm import WarmStart
 from torchpaml._simulate.shooting import SEGMENT_STEPS, simulate_rk4
 from torchpaml._simulate.step_control import simulate_to_tolerance
 
@@ -38,7 +39,7 @@ def simulate(
     substeps: int | Literal["auto"] = "auto",
     segment: int = SEGMENT_STEPS,
     blowup: float = 1e8,
-    warm: dict | None = None,
+    warm: WarmStart | None = None,
     hold: str = "foh",
 ) -> torch.Tensor:
     r"""Simulate $y = \mathcal H^\theta[u]$ for the input through the samples, held as ``hold`` says.
@@ -68,9 +69,9 @@ def simulate(
         knots: times where the input's slope jumps, stepped on by adaptive solvers (see
             :func:`~torchpaml._simulate.ode.simulate_ode`); the exact path needs none.
         blowup: an output beyond this magnitude raises :class:`SimulationError`.
-        warm: a dict kept by the caller between simulations of the same record (``"rk4"``): Newton
-            starts from the states the previous one stored there (see
-            :func:`~torchpaml._simulate.shooting.simulate_rk4`). The result does not depend on it.
+        warm: a :class:`~torchpaml.WarmStart` kept by the caller between simulations of the same record
+            (``"rk4"``): Newton starts from the states the previous one stored there. The result does not
+            depend on it.
         hold: ``"foh"`` (the input linear between samples) or ``"zoh"`` (held constant until the next
             sample); the exact path and ``"rk4"`` take either, torchdiffeq's solvers ``"foh"`` only.
 
@@ -101,7 +102,7 @@ def simulate(
                 raise ValueError(f"substeps must be 'auto' (RK4 to rtol) or a whole number of RK4 steps per sample "
                                  f"interval, at least 1; got {substeps!r}")
             return run(substeps)
-        warm = {} if warm is None else warm  # the accepted step's solve starts the differentiable one
+        warm = WarmStart() if warm is None else warm  # the accepted step's solve starts the differentiable one
         step = float((t[-1] - t[0]) / max(len(t) - 1, 1))
         return simulate_to_tolerance(run, physics.substeps, RK4_RTOL if rtol is None else rtol, step)[0]
     states = simulate_ode(

@@ -27,6 +27,7 @@ from torchpaml._metrics import fit_percent, mismatch
 from torchpaml._render.figures import dominant_frequency, overlay_figure, residual_figure, spectrum_figure
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
 from torchpaml._residual.hybrid import Hybrid
+from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["HybridSystem"]
 
@@ -80,7 +81,7 @@ class HybridSystem(L.LightningModule):
         self.witness = (witness_amplitude, float(witness_omega), float(witness_duration))
         self.physics: nn.Module
         self.residual: nn.Module | None = None
-        self._warm: dict[tuple[str, int], dict] = {}
+        self._warm: dict[tuple[str, int], WarmStart] = {}
 
     # -- the model ---------------------------------------------------------------------------
     def attach(self, physics: nn.Module, residual: nn.Module | None, bounds: dict | None) -> None:
@@ -101,7 +102,7 @@ class HybridSystem(L.LightningModule):
         """The physical parameters this workflow identifies (learned in stage 1 or jointly)."""
         return list(self._identified)
 
-    def outputs(self, t: torch.Tensor, u: torch.Tensor, warm: dict | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    def outputs(self, t: torch.Tensor, u: torch.Tensor, warm: WarmStart | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """``(y_physics, y_model)``: the physics alone and the stage's model (the same in stage 1).
 
         ``warm``: a nonlinear model's Newton warm start (:func:`~torchpaml.simulate`), see :meth:`warm_start`.
@@ -111,10 +112,10 @@ class HybridSystem(L.LightningModule):
             return y, y
         return Hybrid(self.physics, self.residual)(t, u, warm=warm, **self.simulation)
 
-    def warm_start(self, split: str, batch_idx: int) -> dict:
+    def warm_start(self, split: str, batch_idx: int) -> WarmStart:
         """The warm start of one batch of ``split``: every epoch simulates the same batches (the loaders do not
         shuffle) under parameters that moved little, so each RK4 solve starts from the last one's states."""
-        return self._warm.setdefault((split, batch_idx), {})
+        return self._warm.setdefault((split, batch_idx), WarmStart())
 
     def trainable(self) -> list[nn.Parameter]:
         raise NotImplementedError
