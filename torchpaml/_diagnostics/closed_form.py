@@ -30,7 +30,7 @@ from torchpaml._errors import SimulationError
 from torchpaml._fit.uncertainty import IdentifiabilityWarning
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import compile_term, state_columns, width_symbol
-from torchpaml._simulate.shooting import simulate_rk4
+from torchpaml._simulate.records import record_states
 
 __all__ = ["refit_closed_form"]
 
@@ -132,9 +132,8 @@ def _sizes(score: ModelScore, train: Sequence[Experiment]) -> list[float]:
     effect = model.effects["discovered"]
     record = train[0]
     index = state_columns(model)
+    states = record_states(model, record, score.train_states[0])
     with torch.no_grad():
-        states = simulate_rk4(model, record.t - record.t[0], record.u[None], score.train_states[0].reshape(1, -1),
-                              hold=record.hold)[0]
         values = {**{name: states[:, i] for name, i in index.items()}, "u": record.u[:, 0],
                   **{w: getattr(effect, w) for w in effect.width_names}}
         return [abs(float(effect.gain * getattr(effect, name))) * float(compile_term(term, None).evaluate(values)

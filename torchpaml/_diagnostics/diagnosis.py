@@ -40,7 +40,7 @@ from torchpaml._diagnostics.ranking import ModelScore, Ranking
 from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.validity import AmplitudeBins, error_by_amplitude
 from torchpaml._errors import DataError
-from torchpaml._simulate.sensitivity import simulate_record
+from torchpaml._simulate.records import simulate_record
 from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters

@@ -50,9 +50,7 @@ from torchpaml._metrics import mismatch
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import TermLibrary, compile_term, state_columns, variables_of, width_symbol
 from torchpaml._simulate.probes import assigned
-from torchpaml._simulate.response import forced_response
-from torchpaml._simulate.sensitivity import output_jacobian, simulate_record
-from torchpaml._simulate.shooting import simulate_rk4
+from torchpaml._simulate.records import record_jacobian, record_response, record_states, simulate_record
 
 __all__ = ["Discovery", "discover_missing_force", "width_range"]
 
@@ -121,11 +119,7 @@ def _columns(neural, physics, terms: list[str], equations: dict[str, int], varia
              train: Sequence[Experiment], starts: Sequence[torch.Tensor], estimate: bool) -> _Columns:
     """:class:`_Columns` along the neural model's trajectories (module docstring, step 2)."""
     compiled = [compile_term(t, variables) for t in terms]
-    trajectories = []
-    with torch.no_grad():
-        for record, x0 in zip(train, starts, strict=True):
-            trajectories.append(simulate_rk4(neural, record.t - record.t[0], record.u[None], x0.reshape(1, -1),
-                                             hold=record.hold)[0])
+    trajectories = [record_states(neural, record, x0) for record, x0 in zip(train, starts, strict=True)]
     index = state_columns(physics)
     signs = sorted({w for c in compiled for w in c.widths})
     by_width = {width_symbol(s): s for s in index}
@@ -135,25 +129,24 @@ def _columns(neural, physics, terms: list[str], equations: dict[str, int], varia
     samples: dict[str, torch.Tensor] = {}
     n = physics.state_dim
     for record, x0, states in zip(train, starts, trajectories, strict=True):
-        t, u = record.t - record.t[0], record.u[None]
         values = {name: states[:, i] for name, i in index.items()}
         values["u"] = record.u[:, 0]
         values.update({w: torch.tensor(2 * low, dtype=states.dtype) for w, (low, _) in widths.items()})
         rates = []
         for equation, state in equations.items():
             for term in compiled:
-                rate = torch.zeros(len(t), n, dtype=states.dtype)
+                rate = torch.zeros(len(record.t), n, dtype=states.dtype)
                 rate[:, state] = term.evaluate(values)
                 rates.append(rate)
         with torch.no_grad():
             learned = neural.learned(states, record.u)
-        responses = forced_response(physics, t, u, x0.reshape(1, -1), torch.stack([*rates, learned]), record.hold)
+        responses = record_response(physics, record, x0, torch.stack([*rates, learned]))
         parts["responses"].append(responses[:-1, :, 0].T)
         parts["learned"].append(responses[-1, :, 0])
-        y, J = output_jacobian(physics, names[:1], t, u, x0.reshape(1, -1), initial_state=estimate,
-                               hold=record.hold) if estimate else (simulate_record(physics, record, x0), None)
+        y, J = record_jacobian(physics, names[:1], record, x0, initial_state=estimate) if estimate \
+            else (simulate_record(physics, record, x0), None)
         own = _own_sensitivities(physics, names, states, record.u)  # (N, n + n_output, p)
-        own_responses = forced_response(physics, t, u, x0.reshape(1, -1), own[:, :n].movedim(-1, 0), record.hold)
+        own_responses = record_response(physics, record, x0, own[:, :n].movedim(-1, 0))
         columns = own_responses[:, :, 0].T + own[:, n, :]
         if estimate:
             columns = torch.cat([columns, J[0, :, 0, len(names[:1]):]], dim=1)  # the initial states' free responses

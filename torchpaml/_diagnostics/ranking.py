@@ -57,7 +57,8 @@ from torchpaml._errors import ResolutionError, SimulationError
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import unphysical_values
-from torchpaml._simulate.sensitivity import raw_parameters, simulate_record
+from torchpaml._simulate.records import simulate_record
+from torchpaml._simulate.sensitivity import raw_parameters
 from torchpaml._simulate.probes import Secant, TangentLinear, assigned
 from torchpaml._simulate.warm import WarmStart
 from torchpaml._physics.effects import AbstractEffect

@@ -25,7 +25,7 @@ from torchpaml._data import Experiment
 from torchpaml._fit.output_error import minimize_output_error
 from torchpaml._physics.terms import variables_of
 from torchpaml._residual.mlp import MLPRate, RateAugmented
-from torchpaml._simulate.shooting import simulate_rk4
+from torchpaml._simulate.records import record_output, record_states
 from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["NeuralForceFit", "fit_neural_force"]
@@ -66,10 +66,7 @@ def fit_neural_force(
     _, equations = variables_of(frozen)
     starts = [frozen.initial_state(1) if x0 is None else x0.reshape(1, -1)
               for x0 in (initial_states or [None] * len(records))]
-    grids = [(r.t - r.t[0], r.u[None], r.hold) for r in records]
-    with torch.no_grad():
-        states = torch.cat([simulate_rk4(frozen, t, u, x0, hold=hold)[0]
-                            for (t, u, hold), x0 in zip(grids, starts, strict=True)])
+    states = torch.cat([record_states(frozen, r, x0) for r, x0 in zip(records, starts, strict=True)])
     inputs = torch.cat([r.u[:, 0] for r in records])
     scales = [float(s.std()) or 1.0 for s in (*states.T, inputs)]
     with torch.random.fork_rng():
@@ -79,8 +76,8 @@ def fit_neural_force(
     warm = [WarmStart() for _ in records]
 
     def predict() -> torch.Tensor:
-        return torch.cat([model(t, u, x0, method="rk4", warm=w, hold=hold).flatten()
-                          for (t, u, hold), x0, w in zip(grids, starts, warm, strict=True)])
+        return torch.cat([record_output(model, r, x0, method="rk4", warm=w).flatten()
+                          for r, x0, w in zip(records, starts, warm, strict=True)])
 
     target = torch.cat([r.y.flatten() for r in records])
     loss, iterations = minimize_output_error(predict, target, list(rate.parameters()), max_iter=max_iter)

@@ -40,7 +40,8 @@ from torchpaml._fit.resolution import resolved_substeps
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
 from torchpaml._parameters import record_uncertainty
 from torchpaml._physics.base import complete_state
-from torchpaml._simulate.sensitivity import output_jacobian, raw_parameters
+from torchpaml._simulate.records import record_jacobian
+from torchpaml._simulate.sensitivity import raw_parameters
 from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["PhysicsEstimate", "estimate_initial_state", "fit_physics"]
@@ -163,8 +164,7 @@ def fit_physics(
             with torch.no_grad():
                 for tensor, value in zip(raw, x, strict=False):
                     tensor.copy_(torch.tensor(value, dtype=torch.float64))
-            parts = [output_jacobian(physics, names, r.t - r.t[0], r.u[None], x0, warm=w, initial_state=estimate_x0,
-                                     hold=r.hold, **simulate_options)
+            parts = [record_jacobian(physics, names, r, x0, warm=w, initial_state=estimate_x0, **simulate_options)
                      for r, w, x0 in zip(records, warm, starts(x), strict=True)]
             residual = torch.cat([(y - y_hat).flatten() for y, (y_hat, _) in zip(targets, parts, strict=True)]) / scale
             columns = []

@@ -29,7 +29,7 @@ import torch
 from torchpaml._data import Experiment
 from torchpaml._errors import ResolutionError
 from torchpaml._simulate.lti import exact_step
-from torchpaml._simulate.sensitivity import simulate_record
+from torchpaml._simulate.records import simulate_record
 from torchpaml._simulate.step_control import MAX_SUBSTEPS, next_substeps
 
 __all__ = ["MAX_SUBSTEPS", "STEP_FLOOR", "STEP_TOLERANCE", "resolved_substeps", "step_gap"]

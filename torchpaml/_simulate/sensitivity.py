@@ -30,7 +30,6 @@ RK4 the same passes as the parameters' with the initial state as the direction.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import torch
 from torch import nn
@@ -43,10 +42,7 @@ from torchpaml._simulate.shooting import RK4Solution, solve_rk4
 from torchpaml._simulate.simulator import checked_output
 from torchpaml._simulate.warm import WarmStart
 
-if TYPE_CHECKING:
-    from torchpaml._data import Experiment
-
-__all__ = ["output_jacobian", "raw_parameters", "simulate_record"]
+__all__ = ["output_jacobian", "raw_parameters"]
 
 
 def raw_parameters(physics, names: Sequence[str]) -> dict[str, torch.Tensor]:
@@ -58,14 +54,6 @@ def raw_parameters(physics, names: Sequence[str]) -> dict[str, torch.Tensor]:
         original = getattr(owner.parametrizations, leaf).original
         raw[keys[id(original)]] = original
     return raw
-
-
-def simulate_record(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor | None = None, **options) -> torch.Tensor:
-    """The model's output on one record from ``x0`` (n_state,) or rest, (1, time, n_output), without gradients;
-    the input held as the record's ``hold`` says."""
-    with torch.no_grad():
-        return physics(record.t - record.t[0], record.u[None], None if x0 is None else x0.reshape(1, -1),
-                       hold=record.hold, **options)
 
 
 class _Tail(nn.Module):
