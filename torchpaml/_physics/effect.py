@@ -83,8 +83,8 @@ class AbstractEffect(nn.Module):
 
     def starts(self, records: list) -> list[dict[str, float]]:
         """Settings of the effect's other parameters (``{name: value}``) from which the ranking probes and refits
-        it, derived from the measured ``records`` (the scale of y, of its rate): the ranking scores each to first
-        order and refits from the best. The default, ``[{}]``: the parameters as constructed."""
+        it, derived from the measured ``records`` (the scale of y, of its rate): the ranking screens each by one
+        probe and scores and refits the most promising. The default, ``[{}]``: the parameters as constructed."""
         return [{}]
 
     def probe(self, records: list) -> float | None:

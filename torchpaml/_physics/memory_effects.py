@@ -50,7 +50,7 @@ class Hysteresis(AbstractEffect):
     saturation $|z| = 1/(\gamma + \delta)$, $\gamma + \delta < 0$ hardens it. State: ``z`` in [x] (position units),
     starting at 0. Where $\gamma$ was not given, the ranking starts from three loop shapes that bend at the
     record's amplitude, $\gamma = 1/\mathrm{rms}(y)$ and $\delta \in \{0, -\gamma, \gamma\}$ (linear loading and
-    stiffer unloading, hardening, softening), and refits from the one that scores best: from a wrong shape the fit
+    stiffer unloading, hardening, softening), and scores and refits the most promising: from a wrong shape the fit
     can end in a loop of the opposite sense.
     """
 
