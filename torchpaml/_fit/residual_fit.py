@@ -68,14 +68,16 @@ def fit_chebyshev_hammerstein(
     target: torch.Tensor,
     *,
     max_iter: int = 100,
+    rtol: float = CHANGE_TOLERANCE,
 ) -> ResidualEstimate:
-    """Fit ``residual`` in place to ``target`` = y − ŷ, (batch, time, 1), by variable projection."""
+    """Fit ``residual`` in place to ``target`` = y − ŷ, (batch, time, 1), by variable projection; the pole search
+    stops when a step changes the squared mismatch by less than ``rtol`` of it (:data:`CHANGE_TOLERANCE`)."""
     poles = residual.pole_parameters()
 
     def projected():
         return project(residual.regressors(t, u), target[..., 0])[1][..., None]
 
-    _, iterations = minimize_output_error(projected, target, poles, max_iter=max_iter, rtol=CHANGE_TOLERANCE)
+    _, iterations = minimize_output_error(projected, target, poles, max_iter=max_iter, rtol=rtol)
     with torch.no_grad():
         coefficients, _ = project(residual.regressors(t, u), target[..., 0])
         residual.set_coefficients(coefficients)
