@@ -52,7 +52,7 @@ def test_order_and_probe_invariance(duffing, effect, order, one_sided):
     name = f"{effect.name}.{effect.strength}"
     scores = []
     for probe in (1e-4, 1e-3):
-        score, found, *_ = _first_order(base + effect, name, fit, duffing[:1], probe, reference,
+        score, found, *_ = _first_order(base + effect, name, fit, float(duffing[0].y.norm()), probe, reference,
                                        Secant(base, duffing[:1], fit.initial_states))
         assert found == order
         scores.append(score)
@@ -63,8 +63,8 @@ def test_order_and_probe_invariance(duffing, effect, order, one_sided):
 def test_the_true_effect_explains_almost_all_of_a_small_residual(duffing):
     """Noise-free data and a weak effect: first order is nearly exact, so the score is near 1 and k1 near k3."""
     base, fit, reference = fitted(duffing[0])
-    score, _, strength, _ = _first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, duffing[:1], 1e-4, reference,
-                                      Secant(base, duffing[:1], fit.initial_states))
+    score, _, strength, _ = _first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(duffing[0].y.norm()),
+                                         1e-4, reference, Secant(base, duffing[:1], fit.initial_states))
     assert score > 0.97
     assert strength == pytest.approx(0.5, rel=0.15)
 
@@ -82,7 +82,7 @@ def test_the_first_order_step_starts_the_refit_nearer():
     fit = fit_physics(base, record)
     engine = TangentLinear.of(base, [record], fit.initial_states)
     name, ftol = "cubic_stiffness.k3", REFIT_CRITERION_STEP / len(record.y)
-    _, _, strength, move = _first_order(base + CubicStiffness(), name, fit, [record], 1e-4,
+    _, _, strength, move = _first_order(base + CubicStiffness(), name, fit, float(record.y.norm()), 1e-4,
                                         engine.outputs(base) / float(record.y.norm()), engine)
     stepped = refit_effect(base + CubicStiffness(), name, strength, [record], 40, "rest", fit, move, ftol)
     alone = refit_effect(base + CubicStiffness(), name, strength, [record], 40, "rest", ftol=ftol)

@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import torch
+from torch import nn
 
 from torchpaml._data import Experiment
 from torchpaml._diagnostics.selection import SelectionRule
@@ -193,7 +194,20 @@ class _Engines:
         return None if engine is None else (engine, engine.outputs(self.base) / self.scale)
 
 
-def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experiment], probe: float,
+def _beyond_physics(d: torch.Tensor, J: torch.Tensor) -> tuple[torch.Tensor, float]:
+    r"""$\tilde d = (I - J J^+) d$, the part of the output direction ``d`` (samples,) that the physics' own parameters
+    (``J``'s columns) cannot make, and its energy $\|\tilde d\|^2$."""
+    projected = d - J @ torch.linalg.lstsq(J, d[:, None]).solution[:, 0]
+    return projected, float(projected @ projected)
+
+
+def _share(projected: torch.Tensor, energy: float, r: torch.Tensor) -> float:
+    r"""The share of the residual's energy that a step along ``projected`` removes,
+    $(\tilde d^\top r)^2 / (\|\tilde d\|^2 \|r\|^2)$."""
+    return float(projected @ r) ** 2 / (energy * float(r @ r))
+
+
+def _first_order(extended, name: str, fit: PhysicsEstimate, scale: float, probe: float,
                  reference: torch.Tensor, engine: TangentLinear | Secant) -> tuple[float, int, float, torch.Tensor]:
     r"""(score, order q, first-order strength, move) of the effect whose strength parameter is ``name``
     (module docstring).
@@ -206,7 +220,6 @@ def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experime
     unknowns (``fit.jacobian``'s columns): with the effect's output change $\beta d_c$ at the first-order
     strength, $\Delta\rho = -J^+(r - \beta d_c)$. The refit starts from both (:func:`refit_effect`).
     """
-    scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
     outputs = [None if out is None else out / scale
                for out in engine.probes(extended, name, (0.0, probe, 2 * probe, -probe))]
     if outputs[0] is None:
@@ -229,20 +242,19 @@ def _first_order(extended, name: str, fit: PhysicsEstimate, train: list[Experime
         return 0.0, 1, 0.0, still  # the effect does not act on this record
     order = 2 if float(torch.linalg.vector_norm(d2)) / size > 2**1.5 else 1
     one_sided = float(torch.linalg.vector_norm(d_minus - d1)) < 0.5 * size
-    projected = d1 - J @ torch.linalg.lstsq(J, d1[:, None]).solution[:, 0]
-    energy = float(projected @ projected)
+    projected, energy = _beyond_physics(d1, J)
     if energy <= 1e-20 * size**2:
         return 0.0, order, 0.0, still  # the physics' own parameters already make this move
     beta = float(projected @ r) / energy
     if one_sided and beta <= 0:
         return 0.0, order, probe, still
-    score = float(projected @ r) ** 2 / (energy * float(r @ r))
+    score = _share(projected, energy, r)
     move = -torch.linalg.lstsq(J, (r - beta * d1)[:, None]).solution[:, 0]
     return score, order, probe * (beta if order == 1 else beta ** (1 / order)), move
 
 
 def _by_promise(base, candidate: AbstractEffect, train: list[Experiment], fit: PhysicsEstimate, delta: float,
-                reference: torch.Tensor, engine: TangentLinear | Secant, scale: float) -> list[tuple[dict[str, float], torch.Tensor]]:
+                reference: torch.Tensor, engine: TangentLinear | Secant, scale: float) -> list[tuple[dict[str, float], nn.Module]]:
     r"""``(setting, base + candidate)`` for each of the candidate's starts (:meth:`~AbstractEffect.starts`), the most
     promising first: by the unsigned share of the residual that one probe at strength ``delta`` explains,
     $(\tilde d^\top r)^2 / (\|\tilde d\|^2 \|r\|^2)$ with $d$ taken against the base's output. One probe per start
@@ -254,16 +266,13 @@ def _by_promise(base, candidate: AbstractEffect, train: list[Experiment], fit: P
             **{f"{candidate.name}.{key}": value for key, value in setting.items()})))
     if len(models) == 1:
         return models
-    J, r = fit.jacobian, fit.residual
 
     def promise(model) -> float:
         out = engine.probes(model, name, (delta,))[0]
         if out is None:
             return -1.0
-        d = out / scale - reference
-        projected = d - J @ torch.linalg.lstsq(J, d[:, None]).solution[:, 0]
-        energy = float(projected @ projected)
-        return 0.0 if energy == 0.0 else float(projected @ r) ** 2 / (energy * float(r @ r))
+        projected, energy = _beyond_physics(out / scale - reference, fit.jacobian)
+        return 0.0 if energy == 0.0 else _share(projected, energy, fit.residual)
 
     return sorted(models, key=lambda pair: -promise(pair[1]))
 
@@ -403,7 +412,7 @@ def rank_missing_effects(
         best, failure = None, None
         for setting, extended in _by_promise(base, candidate, train, fit, delta, reference, engine, scale):
             try:
-                best = extended, _first_order(extended, strength, fit, train, delta, reference, engine)
+                best = extended, _first_order(extended, strength, fit, scale, delta, reference, engine)
                 break
             except SimulationError as error:  # its own states blow up at zero strength: a stiff start
                 failure = f"not scored: the model blows up at zero strength from {setting or 'its defaults'}: {error}"

@@ -46,7 +46,7 @@ def simulate_record(physics: AbstractPhysics, record: Experiment, x0: torch.Tens
 
 def record_states(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor | None = None) -> torch.Tensor:
     """The states on ``record`` by the RK4 engine at the model's ``substeps``, (time, n_state), without gradients."""
-    start = physics.initial_state(1) if x0 is None else x0.reshape(1, -1)
+    start = physics.initial_state(1) if x0 is None else _start(x0)
     with torch.no_grad():
         return simulate_rk4(physics, record.t - record.t[0], record.u[None], start, hold=record.hold)[0]
 
@@ -64,4 +64,4 @@ def record_response(physics: AbstractPhysics, record: Experiment, x0: torch.Tens
                     ) -> torch.Tensor:
     """:func:`~torchpaml._simulate.response.forced_response` on ``record``: what each of ``rates`` (k, time,
     n_state) does to the output to first order, (k, time, n_output)."""
-    return forced_response(physics, record.t - record.t[0], record.u[None], x0.reshape(1, -1), rates, record.hold)
+    return forced_response(physics, record.t - record.t[0], record.u[None], _start(x0), rates, record.hold)
