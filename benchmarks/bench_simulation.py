@@ -1,4 +1,4 @@
-"""Nonlinear RK4 (parallel in time) against the exact linear path, and one nonlinear fit, in one run.
+"""Nonlinear and stiff simulation (parallel in time) against the exact linear path, and one nonlinear fit, in one run.
 
     python benchmarks/bench_simulation.py [--samples 65536] [--rows 1 64] [--repeats 3] [--dopri5-samples 8000]
                                           [--error-samples 1500]
@@ -10,11 +10,16 @@ same input (the baseline), forward alone and forward plus the gradient of a sum 
 * hard: the same with k3 such that the cubic force is twice the linear one at the RMS of the linear
   response, h * omega0 = 0.2.
 
-Each is timed at one fixed RK4 substep per sample (the engine) and as ``simulate(model, t, u)`` does by
-default (step doubling to rtol 1e-3). Prints seconds, nanoseconds per sample and row, and the ratios to
-exact. Then the error of both against dopri5 at rtol 1e-11 on ``--error-samples`` samples of the hard
-model; one fit (``fit_physics``) of the mild model, four parameters, on a noisy record of ``--samples``
-samples; and, for scale, dopri5 (rtol 1e-7) forward on ``--dopri5-samples`` samples. One thread.
+Each is timed at one fixed RK4 substep per sample (the engine, ``RK4(substeps=1)``) and as
+``simulate(model, t, u)`` does by default (``Auto()``: step doubling to rtol 1e-3). Prints seconds,
+nanoseconds per sample and row, and the ratios to exact. Then:
+
+* stiff: Oscillator + InputLag (tau = h / 50: a lag 50 times faster than the sampling), forward, by
+  the default (which takes TR-BDF2 there), ``TRBDF2(substeps=1)`` and ``RK4()`` (to rtol 1e-3: the
+  substeps that stability needs), each with its ratio to exact and its error against Dopri5;
+* the error of the hard model's two rows against Dopri5 at rtol 1e-11 on ``--error-samples`` samples;
+* one fit (``fit_physics``) of the mild model, four parameters, on a noisy record of ``--samples`` samples;
+* for scale, Dopri5 (rtol 1e-7) forward on ``--dopri5-samples`` samples. One thread.
 """
 
 import argparse
@@ -22,7 +27,8 @@ import time
 
 import torch
 
-from torchpaml import CubicStiffness, Experiment, fit_physics, multisine, Oscillator, simulate
+from torchpaml import (RK4, TRBDF2, CubicStiffness, Dopri5, Exact, Experiment, InputLag, Oscillator, fit_physics,
+                       multisine, simulate)
 
 
 def best(work, repeats: int) -> float:
@@ -82,17 +88,30 @@ def main() -> None:
             t, u = drive(n, rows, step)
             model = duffing if step == 0.05 else hard_model(linear, t, u)
             for name, work in (("forward", forward), ("forward+gradient", forward_gradient)):
-                exact = best(lambda: work(linear, t, u, method="exact"), args.repeats)
-                fixed = best(lambda: work(model, t, u, substeps=1), args.repeats)
+                exact = best(lambda: work(linear, t, u, solver=Exact()), args.repeats)
+                fixed = best(lambda: work(model, t, u, solver=RK4(substeps=1)), args.repeats)
                 default = best(lambda: work(model, t, u), args.repeats)
                 print(f"{label:>22} {rows:>5} {name:>17} {exact:>9.4f} {fixed:>9.3f} {fixed / exact:>6.1f} "
                       f"{default:>10.3f} {default / exact:>6.1f} {1e9 * default / (n * rows):>18.0f}")
+    t, u = drive(n, 1)
+    stiff = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + InputLag(tau=0.05 / 50)
+    exact = best(lambda: forward(linear, t, u, solver=Exact()), args.repeats)
+    short = slice(0, args.error_samples)
+    with torch.no_grad():
+        reference = simulate(stiff, t[short], u[:, short], solver=Dopri5(rtol=1e-11, atol=1e-12))
+    print(f"\nstiff (a lag 50 times faster than the sampling), {n} samples, forward; error on the first "
+          f"{args.error_samples} samples against Dopri5 at rtol 1e-11")
+    for name, solver in (("default", None), ("TRBDF2(substeps=1)", TRBDF2(substeps=1)), ("RK4()", RK4())):
+        seconds = best(lambda: forward(stiff, t, u, solver=solver), args.repeats)
+        with torch.no_grad():
+            error = relative_error(simulate(stiff, t[short], u[:, short], solver=solver), reference)
+        print(f"{name:>22} {seconds:>9.3f} s  ratio to exact {seconds / exact:>6.1f}  error {error:.2e}")
     t, u = drive(args.error_samples, 1, 0.1)
     hard = hard_model(linear, t, u)
     with torch.no_grad():
-        reference = simulate(hard, t, u, method="dopri5", rtol=1e-11, atol=1e-12)
-        errors = {name: relative_error(simulate(hard, t, u, **options), reference)
-                  for name, options in (("rk4(1)", {"substeps": 1}), ("default", {}))}
+        reference = simulate(hard, t, u, solver=Dopri5(rtol=1e-11, atol=1e-12))
+        errors = {name: relative_error(simulate(hard, t, u, solver=solver), reference)
+                  for name, solver in (("rk4(1)", RK4(substeps=1)), ("default", None))}
     print(f"\nhard model, {args.error_samples} samples, relative RMS error against dopri5 at rtol 1e-11: "
           + ", ".join(f"{name} {error:.2e}" for name, error in errors.items()))
     t, u = drive(n, 1)
@@ -111,7 +130,7 @@ def main() -> None:
           + f" (truth 0.2, 2, 4, 2); the linear Oscillator's fit on the same record: {exact_fit:.2f} s")
     m = args.dopri5_samples
     t, u = drive(m, 1)
-    dopri5 = best(lambda: forward(duffing, t, u, method="dopri5"), 1)
+    dopri5 = best(lambda: forward(duffing, t, u, solver=Dopri5()), 1)
     rk4 = best(lambda: forward(duffing, t, u), args.repeats)
     print(f"dopri5 forward on {m} samples: {dopri5:.2f} s ({1e6 * dopri5 / m:.0f} us/sample); the default {rk4:.3f} s: "
           f"{dopri5 / rk4:.0f} x faster")

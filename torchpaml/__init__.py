@@ -99,7 +99,19 @@ from torchpaml._render.schema import SCHEMA_VERSION, diagnosis_to_dict, discover
 from torchpaml._render.tables import comparison_table, ranking_table
 from torchpaml._residual import AbstractResidual, ChebyshevHammerstein, ForceAugmented, MLPForce, MLPResidual
 from torchpaml._signals import chirp, cosine, multisine, pseudorandom, sine, time_grid
-from torchpaml._simulate import WarmStart, iir_filter, output_jacobian, simulate, simulate_record
+from torchpaml._simulate import (
+    RK4,
+    TRBDF2,
+    Auto,
+    Dopri5,
+    Exact,
+    Solver,
+    WarmStart,
+    iir_filter,
+    output_jacobian,
+    simulate,
+    simulate_record,
+)
 
 __all__ = [
     # physics and effects
@@ -151,6 +163,12 @@ __all__ = [
     # simulation
     "simulate",
     "simulate_record",
+    "Solver",
+    "Auto",
+    "Exact",
+    "RK4",
+    "TRBDF2",
+    "Dopri5",
     "WarmStart",
     "output_jacobian",
     "iir_filter",

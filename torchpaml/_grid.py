@@ -35,6 +35,6 @@ def uniform_step(t: torch.Tensor, rtol: float = 1e-6) -> float:
     if float((dt - h).abs().max()) > rtol * h:
         raise DataError(
             f"uniform sampling is required here, but the time steps range from {float(dt.min()):.6g} to "
-            f"{float(dt.max()):.6g} s; resample onto a uniform grid, or use an ODE method (method='dopri5')"
+            f"{float(dt.max()):.6g} s; resample onto a uniform grid, or simulate with solver=RK4() or Dopri5()"
         )
     return h

@@ -33,8 +33,8 @@ from torchpaml._fit import fit_chebyshev_hammerstein, fit_physics, reestimate_sh
 from torchpaml._metrics import mismatch
 from torchpaml._physics import Oscillator, Pendulum
 from torchpaml._residual import ChebyshevHammerstein
-from torchpaml._signals import pseudorandom, pseudorandom_knots, sine, time_grid
-from torchpaml._simulate import simulate
+from torchpaml._signals import pseudorandom, sine, time_grid
+from torchpaml._simulate import Auto, simulate
 
 __all__ = ["PaperSetup", "PAPER_NUMBERS", "reproduce"]
 
@@ -74,14 +74,13 @@ class PaperSetup:
     zeta_bounds: tuple[float, float] = (1e-3, 5.0)
     zeta_start: float = 1.0
     rtol: float = 1e-7
-    atol: float = 1e-9
 
 
 def _measure(setup: PaperSetup, t: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
     """Outputs of the true pendulum for a batch of inputs, one ODE solve."""
     truth = Pendulum(zeta=setup.zeta, omega0=setup.omega0, learn=())
     with torch.no_grad():
-        return simulate(truth, t, u, rtol=setup.rtol, atol=setup.atol, knots=pseudorandom_knots(t, setup.knot_period))
+        return simulate(truth, t, u, solver=Auto(rtol=setup.rtol))
 
 
 def reproduce_alpha(alpha: float, seeds: list[int], setup: PaperSetup = PaperSetup()) -> dict:

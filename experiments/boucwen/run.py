@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> dict:
     for step, rung in zip(diagnosis.ladder.steps, content["ladder"], strict=True):
         rmse = test_rmse(step.model, tests)
         models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
-                       "uncertainty": rung["uncertainty"], "substeps": step.model.substeps, "rmse": rmse})
+                       "uncertainty": rung["uncertainty"], "substeps": step.model.solver.substeps, "rmse": rmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3e} m" for k, v in rmse.items()), flush=True)
     result = {"found": diagnosis.ladder.added, "models": models, "hybrid": content["hybrid"],
               "seconds": time.perf_counter() - start}

@@ -29,11 +29,14 @@ from torchpaml import (
     state_vector,
 )
 
-__all__ = ["CLIP_LEVEL", "MAX_SPILL_RATE", "SensorClip", "TorricelliOutflow", "TwoTanks", "UpperOverflow"]
+__all__ = ["CLIP_LEVEL", "FREE_SPILL_RATE", "MAX_SPILL_RATE", "SensorClip", "TorricelliOutflow", "TwoTanks", "UpperOverflow"]
 
 CLIP_LEVEL = 10.0
-#: 1/s: the fastest spill the 4 s samples resolve, one sample interval (:class:`UpperOverflow`).
+#: 1/s: the fastest spill the 4 s samples resolve explicitly, one sample interval (the default bound).
 MAX_SPILL_RATE = 0.25
+#: 1/s: the bound of a free spill rate (``--free-spill``), far beyond anything the 4 s samples tell from an
+#: instant spill.
+FREE_SPILL_RATE = 1000.0
 
 
 class TwoTanks(AbstractPhysics):
@@ -114,21 +117,22 @@ class UpperOverflow(AbstractEffect):
     shape parameter (fixed at its start, freed by the ranking when the data asks); $s \in [0, 1]$ is
     the share of the spill that falls into the lower tank.
 
-    The rate $c$ is bounded by :data:`MAX_SPILL_RATE`: a spill faster than one sample interval is a hard
-    cap on the 4 s grid, and the data cannot tell it from an instant one. Unbounded, the fit drives $c$ to
-    40 1/s, where the RK4 step (4 s) no longer resolves the spill and the integration error, not the
-    physics, fits the data (the step check of :func:`~torchpaml._fit.fit_physics` refuses that optimum).
+    The rate $c$ is bounded by ``max_rate``, by default :data:`MAX_SPILL_RATE`: one sample interval,
+    where RK4 resolves the spill. ``max_rate=FREE_SPILL_RATE`` leaves it free: a fast spill is stiff on
+    the 4 s grid, and the fit integrates it with the implicit TR-BDF2, which its step check chooses
+    where RK4's step would be unstable.
     """
 
     name, equation = "upper_overflow", "- c*max(x_upper - h*k4/k1, 0), s of it into the lower tank"
     states = ("upper", "lower")
     shape = ("h",)
 
-    def __init__(self, c: float = 0.0, h: float = 5.0, s: float = 0.5, *, learn=("c", "s")):
+    def __init__(self, c: float = 0.0, h: float = 5.0, s: float = 0.5, *, max_rate: float = MAX_SPILL_RATE,
+                 learn=("c", "s")):
         super().__init__()
         register_parameters(self, [
-            PhysicalParameter("c", c, "1/s", Interval(-MAX_SPILL_RATE, MAX_SPILL_RATE), "spill rate above the rim",
-                              physical=(0.0, MAX_SPILL_RATE)),
+            PhysicalParameter("c", c, "1/s", Interval(-max_rate, max_rate), "spill rate above the rim",
+                              physical=(0.0, max_rate)),
             PhysicalParameter("h", h, "V (input)", Positive(), "rim, as the input that settles there"),
             PhysicalParameter("s", s, "-", Interval(0.0, 1.0), "share of the spill into the lower tank"),
         ], learn)

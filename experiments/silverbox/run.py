@@ -114,7 +114,7 @@ def main(argv: list[str] | None = None) -> dict:
     for step, rung in zip(diagnosis.ladder.steps, content["ladder"], strict=True):
         rmse, nrmse = test_scores(step.model, tests)
         models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
-                       "uncertainty": rung["uncertainty"], "substeps": step.model.substeps, "rmse": rmse,
+                       "uncertainty": rung["uncertainty"], "substeps": step.model.solver.substeps, "rmse": rmse,
                        "nrmse": nrmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,

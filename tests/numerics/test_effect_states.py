@@ -13,6 +13,7 @@ gradient is 1e-4 off (measured), so the gradient check takes tau1 = 0 (learned, 
 import pytest
 import torch
 
+from torchpaml import RK4
 from torchpaml import DynamicFriction, Hysteresis, InputLag, Oscillator, fit_physics, Experiment, simulate
 from torchpaml._signals import multisine
 
@@ -59,7 +60,7 @@ def test_gradients_match_central_differences(name, record):
     weights = torch.randn(len(t), generator=torch.Generator().manual_seed(1), dtype=torch.float64)
 
     def loss():
-        return (simulate(physics, t, u, substeps=4)[0, :, 0] * weights).sum()
+        return (simulate(physics, t, u, solver=RK4(substeps=4))[0, :, 0] * weights).sum()
 
     physics.zero_grad()
     loss().backward()
@@ -85,8 +86,8 @@ def test_the_step_check_resolves_a_fast_effect_state():
     truth = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + InputLag(tau=0.025)
     y = oracle(truth, t, u)
     with torch.no_grad():
-        assert relative_error(simulate(truth, t, u, substeps=1), y) > 1e-5
+        assert relative_error(simulate(truth, t, u, solver=RK4(substeps=1)), y) > 1e-5
     physics = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + InputLag(tau=0.05)
     estimate = fit_physics(physics, Experiment(t, u[0], y[0]))
-    assert estimate.substeps > 1
+    assert estimate.solver.substeps > 1
     assert float(physics.physical_parameters()["input_lag.tau"]) == pytest.approx(0.025, rel=1e-3)

@@ -15,6 +15,7 @@ import pytest
 import torch
 from scipy.integrate import solve_ivp
 
+from torchpaml import Dopri5, RK4
 from torchpaml import CubicStiffness, multisine, Oscillator, simulate, SimulationError, time_grid, WarmStart
 
 
@@ -61,14 +62,14 @@ def test_the_oracle_is_the_model():
 def test_rk4_agrees_with_dop853_within_its_error_bound(drive, reference):
     t, u = drive
     with torch.no_grad():
-        y = simulate(_duffing(), t, u, method="rk4")
+        y = simulate(_duffing(), t, u, solver=RK4())
     assert _relative(y, reference) < 2e-4
 
 
 def test_rk4_converges_at_fourth_order(drive, reference):
     t, u = drive
     with torch.no_grad():
-        errors = [_relative(simulate(_duffing(), t, u, method="rk4", substeps=m), reference) for m in (1, 2)]
+        errors = [_relative(simulate(_duffing(), t, u, solver=RK4(substeps=m)), reference) for m in (1, 2)]
     assert 12 < errors[0] / errors[1] < 20  # 2^4 = 16
 
 
@@ -76,8 +77,8 @@ def test_rk4_converges_at_fourth_order(drive, reference):
 def test_multiple_shooting_equals_sequential_rk4(drive, segment):
     t, u = drive
     with torch.no_grad():
-        sequential = simulate(_duffing(), t, u, method="rk4", segment=10**6)
-        parallel = simulate(_duffing(), t, u, method="rk4", segment=segment)
+        sequential = simulate(_duffing(), t, u, solver=RK4(segment=10**6))
+        parallel = simulate(_duffing(), t, u, solver=RK4(segment=segment))
     assert _relative(parallel, sequential) < 1e-10
 
 
@@ -85,15 +86,15 @@ def test_rows_are_independent(drive):
     t, _ = drive
     u = torch.cat([multisine(t, a, [0.05, 0.1, 0.2], seed=1) for a in (0.5, 1.0, 2.0)])
     with torch.no_grad():
-        together = simulate(_duffing(), t, u, method="rk4")
-        alone = torch.cat([simulate(_duffing(), t, u[i : i + 1], method="rk4") for i in range(3)])
+        together = simulate(_duffing(), t, u, solver=RK4())
+        alone = torch.cat([simulate(_duffing(), t, u[i : i + 1], solver=RK4()) for i in range(3)])
     assert _relative(together, alone) < 1e-12
 
 
 def _central_difference(model_of, value, t, u, weight, step=1e-6):
     with torch.no_grad():
-        plus = (simulate(model_of(value + step), t, u, method="rk4") * weight).sum()
-        minus = (simulate(model_of(value - step), t, u, method="rk4") * weight).sum()
+        plus = (simulate(model_of(value + step), t, u, solver=RK4()) * weight).sum()
+        minus = (simulate(model_of(value - step), t, u, solver=RK4()) * weight).sum()
     return float((plus - minus) / (2 * step))
 
 
@@ -103,7 +104,7 @@ def test_reverse_mode_gradient_matches_central_differences(drive, name):
     weight = torch.randn(u.shape, generator=torch.Generator().manual_seed(0))
     model = _duffing()
     model.set_learnable("zeta", "cubic_stiffness.k3")
-    (simulate(model, t, u, method="rk4") * weight).sum().backward()
+    (simulate(model, t, u, solver=RK4()) * weight).sum().backward()
     key = "zeta" if name == "zeta" else "cubic_stiffness.k3"
     owner, leaf = model._owner(key)
     raw_grad = float(getattr(owner.parametrizations, leaf).original.grad)
@@ -117,11 +118,11 @@ def test_gradient_in_initial_state_matches_central_differences(drive):
     t, u = drive
     x0 = torch.tensor([[0.3, -0.2]], requires_grad=True)
     weight = torch.randn(u.shape, generator=torch.Generator().manual_seed(1))
-    (simulate(_duffing(), t, u, x0, method="rk4") * weight).sum().backward()
+    (simulate(_duffing(), t, u, x0, solver=RK4()) * weight).sum().backward()
     with torch.no_grad():
         shift = torch.tensor([[1e-6, 0.0]])
-        plus = (simulate(_duffing(), t, u, x0 + shift, method="rk4") * weight).sum()
-        minus = (simulate(_duffing(), t, u, x0 - shift, method="rk4") * weight).sum()
+        plus = (simulate(_duffing(), t, u, x0 + shift, solver=RK4()) * weight).sum()
+        minus = (simulate(_duffing(), t, u, x0 - shift, solver=RK4()) * weight).sum()
     assert float(x0.grad[0, 0]) == pytest.approx(float((plus - minus) / 2e-6), rel=1e-6)
 
 
@@ -134,7 +135,7 @@ def test_forward_mode_equals_reverse_mode(drive, segment):
     raw = model.base.parametrizations.zeta.original.detach().clone()
 
     def output(r):
-        return torch.func.functional_call(model, {key: r}, (t, u), {"method": "rk4", "segment": segment})
+        return torch.func.functional_call(model, {key: r}, (t, u), {"solver": RK4(segment=segment)})
 
     _, tangent = torch.func.jvp(output, (raw,), (torch.ones_like(raw),))
     cotangent = torch.randn(u.shape, generator=torch.Generator().manual_seed(2))
@@ -148,7 +149,7 @@ def test_gradcheck_in_parameter_and_input():
 
     def run(raw_zeta, u):
         return torch.func.functional_call(_duffing(), {"base.parametrizations.zeta.original": raw_zeta}, (t, u),
-                                          {"method": "rk4", "segment": 8})
+                                          {"solver": RK4(segment=8)})
 
     assert torch.autograd.gradcheck(run, (torch.tensor(-1.5, requires_grad=True), u))
 
@@ -158,8 +159,8 @@ def test_non_uniform_time_is_simulated_by_the_same_engine(drive):
     keep = torch.arange(len(t)) % 3 != 2  # every third sample missing
     t, u = t[keep], u[:, keep]
     with torch.no_grad():
-        reference = simulate(_duffing(), t, u, method="dopri5", rtol=1e-10, atol=1e-12, knots=t)
-        y = simulate(_duffing(), t, u, method="rk4", substeps=2)
+        reference = simulate(_duffing(), t, u, solver=Dopri5(rtol=1e-10, atol=1e-12), knots=t)
+        y = simulate(_duffing(), t, u, solver=RK4(substeps=2))
     assert _relative(y, reference) < 2e-4
 
 
@@ -167,17 +168,18 @@ def test_unstable_parameters_raise_a_simulation_error(drive):
     t, u = drive
     unstable = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(-5.0)  # softening: escapes to infinity
     with pytest.raises(SimulationError, match="blew up"), torch.no_grad():
-        simulate(unstable, t, 3 * u, method="rk4")
+        simulate(unstable, t, 3 * u, solver=RK4())
 
 
 def test_a_warm_start_converges_to_the_same_solution(drive):
-    from torchpaml._simulate.shooting import solve_rk4
+    from torchpaml._simulate.shooting import solve_shooting
 
     t, u = drive
     x0 = torch.zeros(1, 2)
-    cold = solve_rk4(_duffing(k3=2.0), t, u, x0)
-    warm = solve_rk4(_duffing(k3=2.1), t, u, x0, guess=cold.trajectory)  # a neighbour's solution as the guess
-    reference = solve_rk4(_duffing(k3=2.1), t, u, x0)
+    one = RK4(substeps=1)
+    cold = solve_shooting(_duffing(k3=2.0), t, u, x0, one)
+    warm = solve_shooting(_duffing(k3=2.1), t, u, x0, one, guess=cold.trajectory)  # a neighbour's solution as the guess
+    reference = solve_shooting(_duffing(k3=2.1), t, u, x0, one)
     assert _relative(warm.trajectory, reference.trajectory) < 1e-10
 
 
@@ -194,13 +196,13 @@ class _UserDuffing(torch.nn.Module):
 def test_any_memory_layout_and_start_give_the_same_solution(drive):
     """The library's composed model (state-major derivative, Newton started from its linear base's
     trajectory) and the same ODE written by a user (row-major, started from x0 held): one solution."""
-    from torchpaml._simulate.shooting import simulate_rk4
+    from torchpaml._simulate.shooting import simulate_shooting
 
     t, u = drive
     x0 = torch.tensor([[0.2, -0.1]], dtype=torch.float64)
     with torch.no_grad():
-        library = simulate_rk4(_duffing(), t, u, x0)
-        user = simulate_rk4(_UserDuffing(), t, u, x0)
+        library = simulate_shooting(_duffing(), t, u, x0, RK4(substeps=1))
+        user = simulate_shooting(_UserDuffing(), t, u, x0, RK4(substeps=1))
     assert _relative(user, library) < 1e-10
 
 
@@ -219,14 +221,14 @@ def test_simulate_warm_starts_from_the_last_solution_and_gives_the_same_output(d
 
     warm = WarmStart()
     with torch.no_grad():
-        cold = simulate(_duffing(k3=2.1), t, u, method="rk4")
-        simulate(_duffing(k3=2.0), t, u, method="rk4", warm=warm)
+        cold = simulate(_duffing(k3=2.1), t, u, solver=RK4())
+        simulate(_duffing(k3=2.0), t, u, solver=RK4(), warm=warm)
         shooting._Sweep.__init__ = counted
         try:
-            again = simulate(_duffing(k3=2.1), t, u, method="rk4", warm=warm)
+            again = simulate(_duffing(k3=2.1), t, u, solver=RK4(), warm=warm)
             warm_sweeps = len(sweeps)
             sweeps.clear()
-            simulate(_duffing(k3=2.1), t, u, method="rk4")
+            simulate(_duffing(k3=2.1), t, u, solver=RK4())
         finally:
             shooting._Sweep.__init__ = original
     assert warm.states.shape == (1, len(t), 2)
@@ -237,7 +239,7 @@ def test_simulate_warm_starts_from_the_last_solution_and_gives_the_same_output(d
 def test_a_warm_start_that_is_not_a_warm_start_object_is_refused(drive):
     t, u = drive
     with pytest.raises(TypeError, match="warm must be a torchpaml.WarmStart"):
-        simulate(_duffing(k3=2.0), t, u, method="rk4", warm={})
+        simulate(_duffing(k3=2.0), t, u, solver=RK4(), warm={})
 
 
 def test_the_linear_base_of_a_learned_force_is_its_physics():

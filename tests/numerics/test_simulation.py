@@ -12,6 +12,7 @@ import pytest
 import torch
 from scipy import integrate, signal
 
+from torchpaml import Auto, Dopri5, Exact, RK4
 from torchpaml import Oscillator, Pendulum, simulate
 from torchpaml._signals import pseudorandom, pseudorandom_knots, sine
 
@@ -25,8 +26,8 @@ def _relative(a, b):
 def test_exact_agrees_with_torchdiffeq_to_1e8(grid, zeta):
     physics = Oscillator(zeta=zeta, omega0=2.0, gain=1.3)
     u = pseudorandom(grid, 4.0, batch=2, seed=1)
-    exact = simulate(physics, grid, u, method="exact")
-    ode = simulate(physics, grid, u, method="dopri5", rtol=1e-10, atol=1e-12, knots=pseudorandom_knots(grid))
+    exact = simulate(physics, grid, u, solver=Exact())
+    ode = simulate(physics, grid, u, solver=Dopri5(rtol=1e-10, atol=1e-12), knots=pseudorandom_knots(grid))
     assert _relative(exact, ode) <= 1e-8
 
 
@@ -54,7 +55,7 @@ def test_pendulum_ode_matches_scipy_solve_ivp(grid):
     physics = Pendulum(zeta=0.5, omega0=2.0)
     u = pseudorandom(grid, 6.0, seed=3)
     knots = pseudorandom_knots(grid)
-    y = simulate(physics, grid, u, rtol=1e-10, atol=1e-12, knots=knots)
+    y = simulate(physics, grid, u, solver=Auto(rtol=1e-10))
     values = u[0, :, 0].numpy()
 
     def f(t, s):
@@ -95,7 +96,7 @@ def test_gradcheck_ode_simulator_in_parameters():
     def run(raw_zeta):
         physics = Pendulum()
         return torch.func.functional_call(physics, {"parametrizations.zeta.original": raw_zeta}, (t, u),
-                                          {"method": "rk4"})
+                                          {"solver": RK4()})
 
     assert torch.autograd.gradcheck(run, (torch.tensor(-0.5, requires_grad=True),))
 
@@ -106,7 +107,7 @@ def test_adjoint_gradient_matches_direct_backprop(grid):
     grads = []
     for adjoint in (False, True):
         physics = Pendulum()
-        simulate(physics, t, u, rtol=1e-8, atol=1e-10, adjoint=adjoint).square().sum().backward()
+        simulate(physics, t, u, solver=Dopri5(rtol=1e-8, atol=1e-10, adjoint=adjoint)).square().sum().backward()
         grads.append(physics.parametrizations.zeta.original.grad)
     assert torch.allclose(grads[0], grads[1], rtol=1e-5)  # both within solver tolerance of the truth
 
@@ -128,14 +129,14 @@ def test_zero_order_hold_matches_scipy_lsim_and_rk4_converges_to_it():
     with torch.no_grad():
         exact = simulate(physics, t, u, x0, hold="zoh")[0, :, 0]
         first_order = simulate(physics, t, u, x0)[0, :, 0]
-        errors = [float((simulate(physics + CubicStiffness(0.0), t, u, x0, method="rk4", hold="zoh", substeps=m)[0, :, 0]
+        errors = [float((simulate(physics + CubicStiffness(0.0), t, u, x0, solver=RK4(substeps=m), hold="zoh")[0, :, 0]
                          - exact).abs().max()) for m in (1, 8)]
     _, oracle, _ = lsim((A, B, C, D), u[0, :, 0].numpy(), t.numpy(), X0=x0[0].numpy(), interp=False)
     assert np.abs(exact.numpy() - oracle).max() < 1e-12
     assert float((exact - first_order).abs().max()) > 0.02  # the hold matters on this input (0.049)
     assert errors[0] < 1e-5 and errors[0] / errors[1] > 2000
-    with pytest.raises(ValueError, match="hold='zoh' is simulated by the exact path and by 'rk4'"):
-        simulate(physics + CubicStiffness(0.0), t, u, x0, method="dopri5", hold="zoh")
+    with pytest.raises(ValueError, match="hold='zoh' is simulated by the exact path and by the fixed-step solvers"):
+        simulate(physics + CubicStiffness(0.0), t, u, x0, solver=Dopri5(), hold="zoh")
 
 
 @pytest.mark.parametrize("zeta, hold", [(0.3, "foh"), (1.0, "foh"), (0.3, "zoh")])  # 1.0: critical damping

@@ -6,9 +6,12 @@ response. Tolerance: the error of the returned output (relative RMS) is at most 
 integrates each sample interval on its own, so that the first-order hold's corners fall on its step ends.
 """
 
+import copy
+
 import pytest
 import torch
 
+from torchpaml import RK4, Auto
 from torchpaml import (AbstractPhysics, CubicStiffness, Oscillator, PhysicalParameter, Positive, ResolutionError,
                        register_parameters, simulate, state_vector)
 from torchpaml._signals import multisine
@@ -38,18 +41,20 @@ def relative_error(y, reference):
 def test_the_default_meets_its_tolerance_on_a_hard_nonlinearity(hard, rtol):
     model, t, u, reference = hard
     with torch.no_grad():
-        y = simulate(model, t, u, rtol=rtol)
-        one_substep = simulate(model, t, u, substeps=1)
+        y = simulate(model, t, u, solver=None if rtol is None else Auto(rtol=rtol))
+        one_substep = simulate(model, t, u, solver=RK4(substeps=1))
     assert relative_error(y, reference) <= (1e-3 if rtol is None else rtol)
     assert relative_error(one_substep, reference) > 10 * relative_error(y, reference)  # the check did refine
 
 
 def test_a_fixed_step_is_taken_as_given_and_calling_the_model_uses_its_own(hard):
     model, t, u, _ = hard
+    model = copy.deepcopy(model)
+    model.solver = RK4(substeps=1)  # as a fit leaves it
     with torch.no_grad():
-        fixed = simulate(model, t, u, substeps=1)
+        fixed = simulate(model, t, u, solver=RK4(substeps=1))
         called = model(t, u)
-        finer = simulate(model, t, u, substeps=2)
+        finer = simulate(model, t, u, solver=RK4(substeps=2))
     assert torch.equal(fixed, called)
     assert not torch.equal(fixed, finer)
 
@@ -71,16 +76,17 @@ def test_the_gradient_of_the_default_matches_central_differences(hard):
 
 def test_a_tolerance_beyond_reach_raises_a_resolution_error_naming_the_fixes(hard):
     model, t, u, _ = hard
-    with pytest.raises(ResolutionError, match=r"cannot meet rtol=1e-15.*Loosen rtol, fix the step with substeps=N, "
-                                              r"or integrate with method='dopri5'"):
-        simulate(model, t, u, rtol=1e-15)
+    with pytest.raises(ResolutionError, match=r"RK4 cannot meet rtol=1e-15.*Loosen rtol, fix the step with "
+                                              r"RK4\(substeps=N\), integrate stiff physics with TRBDF2\(\), or use "
+                                              r"Dopri5\(\)"):
+        simulate(model, t, u, solver=RK4(rtol=1e-15))
 
 
 @pytest.mark.parametrize("substeps", ["fast", 0, 2.5])
 def test_a_step_that_is_not_auto_or_a_whole_number_is_refused(hard, substeps):
     model, t, u, _ = hard
-    with pytest.raises(ValueError, match=r"substeps must be 'auto' \(RK4 to rtol\) or a whole number"):
-        simulate(model, t, u, substeps=substeps)
+    with pytest.raises(ValueError, match=r"substeps must be 'auto' \(to rtol\) or a whole number"):
+        RK4(substeps=substeps)
 
 
 class FastTank(AbstractPhysics):

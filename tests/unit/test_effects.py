@@ -3,6 +3,7 @@
 import pytest
 import torch
 
+from torchpaml import RK4, Auto
 from torchpaml import (
     AbstractEffect,
     complete_state,
@@ -25,8 +26,8 @@ from torchpaml import (
 from torchpaml._physics.effects import _tanh_ratio
 from torchpaml._signals import pseudorandom, pseudorandom_knots, sine
 
-TOL = dict(rtol=1e-7, atol=1e-9)
-TIGHT = dict(rtol=1e-9, atol=1e-11)
+TOL = dict(solver=Auto(rtol=1e-7))
+TIGHT = dict(solver=Auto(rtol=1e-9))
 
 
 def test_the_library_has_every_effect_the_issue_names():
@@ -140,8 +141,8 @@ def test_a_base_state_is_completed_wherever_it_is_passed(grid):
     u = pseudorandom(grid, 1.0, seed=2)
     model = Oscillator(zeta=0.3, omega0=2.0) + Hysteresis(k=1.0, gamma=2.0, delta=0.5)
     with torch.no_grad():
-        short = simulate(model, grid, u, torch.tensor([[0.2, 0.0]]), substeps=2)
-        whole = simulate(model, grid, u, torch.tensor([[0.2, 0.0, 0.0]]), substeps=2)
+        short = simulate(model, grid, u, torch.tensor([[0.2, 0.0]]), solver=RK4(substeps=2))
+        whole = simulate(model, grid, u, torch.tensor([[0.2, 0.0, 0.0]]), solver=RK4(substeps=2))
     assert torch.equal(short, whole)
 
 
@@ -151,7 +152,7 @@ def test_the_input_lag_is_off_at_zero_and_for_a_negative_tau(grid):
     with torch.no_grad():
         exact = simulate(base, grid, u)
         for tau in (0.0, -0.5):
-            lagged = simulate(base + InputLag(tau=tau), grid, u, method="rk4", substeps=8)
+            lagged = simulate(base + InputLag(tau=tau), grid, u, solver=RK4(substeps=8))
             torch.testing.assert_close(lagged, exact, rtol=0, atol=1e-7)  # RK4 at h/8 against the exact path
 
 
@@ -169,4 +170,4 @@ def test_an_effect_with_states_but_no_dynamics_is_refused_by_name():
         own_states = (EffectState("w"),)
 
     with pytest.raises(NotImplementedError, match="forgetful declares own_states and must implement state_rate"):
-        simulate(Oscillator() + Forgetful(), torch.arange(5.0), torch.zeros(1, 5, 1), substeps=1)
+        simulate(Oscillator() + Forgetful(), torch.arange(5.0), torch.zeros(1, 5, 1), solver=RK4(substeps=1))

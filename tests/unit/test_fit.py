@@ -5,6 +5,7 @@ import copy
 import pytest
 import torch
 
+from torchpaml import RK4
 from torchpaml import (
     ChebyshevHammerstein,
     cosine,
@@ -46,7 +47,7 @@ def test_nonlinear_fit_recovers_the_generating_parameters(grid):
     t = grid[::5]
     u = pseudorandom(t, 1.0, seed=1)
     # the device: the continuous system, here RK4 at 16 steps per sample (its error ~1e-9)
-    y = simulate(Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(1.5), t, u, substeps=16).detach()
+    y = simulate(Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(1.5), t, u, solver=RK4(substeps=16)).detach()
     model = Oscillator(zeta=0.5, omega0=1.5, gain=3.0, learn=("zeta", "omega0", "gain")) + CubicStiffness()
     fit = fit_physics(model, Experiment.records(t, u, y))
     for name, truth in {"zeta": 0.2, "omega0": 2.0, "gain": 4.0, "cubic_stiffness.k3": 1.5}.items():
@@ -174,7 +175,7 @@ def test_a_record_held_zero_order_is_fitted_as_held(grid):
         (Oscillator(zeta=0.3, omega0=2.5, gain=1.7) + CubicStiffness(1.0),
          Oscillator(zeta=0.5, omega0=2.2, gain=1.5, learn=("zeta", "omega0", "gain")) + CubicStiffness()),
     ]:
-        y = simulate(truth, t, u, hold="zoh", method="auto", substeps=16).detach()  # RK4 resolved (nonlinear)
+        y = simulate(truth, t, u, hold="zoh", solver=RK4(substeps=16)).detach()  # RK4 resolved (nonlinear)
         held = Experiment(t, u[0], y[0], "held", hold="zoh")
         fit = fit_physics(copy.deepcopy(start), held)
         for name in ("zeta", "omega0", "gain"):

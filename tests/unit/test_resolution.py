@@ -11,6 +11,7 @@ import copy
 import pytest
 import torch
 
+from torchpaml import RK4, Exact
 from torchpaml import (
     ConstantForce,
     CubicStiffness,
@@ -34,7 +35,7 @@ def record(h: float, noise: float = 0.005) -> Experiment:
     u = pseudorandom(t, 1.0, period=4.0, seed=0)
     device = Oscillator(zeta=0.05, omega0=2.0, gain=4.0) + CubicStiffness(0.5)
     with torch.no_grad():
-        y = simulate(device, t, u, substeps=32)[0]
+        y = simulate(device, t, u, solver=RK4(substeps=32))[0]
     y = y + noise * y.std() * torch.randn(y.shape, generator=torch.Generator().manual_seed(7), dtype=torch.float64)
     return Experiment(t, u[0], y, f"h = {h:g} s")
 
@@ -47,8 +48,8 @@ def test_the_fit_refines_the_step_until_its_output_no_longer_depends_on_it():
     coarse = record(0.35)
     model = start()
     fit = fit_physics(model, coarse)
-    assert fit.substeps >= 2 and model.substeps == fit.substeps
-    assert step_gap(model, [coarse], [None]) <= STEP_TOLERANCE * fit.mismatch
+    assert isinstance(fit.solver, RK4) and fit.solver.substeps >= 2 and model.solver == fit.solver
+    assert step_gap(model, fit.solver, [coarse], [None]) <= STEP_TOLERANCE * fit.mismatch
     for name, truth in TRUTH.items():  # the intervals hold the truth once the step is resolved
         assert abs(fit.parameters[name] - truth) < 4 * fit.uncertainty.std[name], name
 
@@ -57,26 +58,33 @@ def test_without_the_check_the_step_error_biases_the_parameters_far_beyond_their
     # at one step per sample zeta is off by 23 standard errors, omega0 by 15 (measured); resolved, by 1
     monkeypatch.setattr(resolution, "STEP_TOLERANCE", float("inf"))
     fit = fit_physics(start(), record(0.35))
-    assert fit.substeps == 1
+    assert fit.solver == RK4(substeps=1)
     assert abs(fit.parameters["zeta"] - TRUTH["zeta"]) > 10 * fit.uncertainty.std["zeta"]
 
 
 def test_a_resolved_fit_keeps_one_step_per_sample():
     fit = fit_physics(start(), record(0.035))
-    assert fit.substeps == 1
+    assert fit.solver == RK4(substeps=1)
 
 
 def test_an_optimum_that_needs_more_substeps_than_allowed_is_refused_naming_the_fix(monkeypatch):
     monkeypatch.setattr(resolution, "MAX_SUBSTEPS", 1)
-    with pytest.raises(ResolutionError, match=r"depends on the RK4 step.*Bound that rate .* or sample faster"):
+    with pytest.raises(ResolutionError, match=r"depends on the RK4 step.*Fit with solver=TRBDF2\(\).*bound that rate "
+                                              r".* or sample faster"):
+        fit_physics(start(), record(0.35), solver=RK4())
+    # the default goes on with the implicit method, which does not resolve this smooth, non-stiff optimum either
+    with pytest.raises(ResolutionError, match=r"depends on the TRBDF2 step"):
         fit_physics(start(), record(0.35))
 
 
-def test_an_added_effect_keeps_the_resolution_the_physics_was_fitted_at():
+def test_an_added_effect_keeps_the_solver_the_physics_was_fitted_with():
     model = start()
-    model.substeps = 4
-    assert (model + ConstantForce()).substeps == 4
-    assert copy.deepcopy(model).substeps == 4
+    model.solver = RK4(substeps=4)
+    assert (model + ConstantForce()).solver == RK4(substeps=4)
+    assert copy.deepcopy(model).solver == RK4(substeps=4)
+    linear = Oscillator()
+    linear.solver = Exact()  # a fitted linear model: the exact path does not apply to physics + effect
+    assert (linear + ConstantForce()).solver is None
 
 
 def test_a_ranking_reports_an_unresolved_refit_and_does_not_recommend_it(monkeypatch):

@@ -14,8 +14,8 @@ import torch
 from torchpaml._data.experiment import Experiment
 from torchpaml._errors import DataError
 from torchpaml._physics.base import AbstractPhysics
-from torchpaml._signals import cosine, multisine, pseudorandom, pseudorandom_knots, sine, time_grid
-from torchpaml._simulate import simulate
+from torchpaml._signals import cosine, multisine, pseudorandom, sine, time_grid
+from torchpaml._simulate import Auto, simulate
 
 __all__ = ["ExperimentSource", "Files", "Simulated"]
 
@@ -68,10 +68,9 @@ class Simulated(ExperimentSource):
         dt: sampling interval, s.
         omega: sine/cosine frequency, rad/s.
         noise: standard deviation of white output noise as a fraction of RMS(y) (0: noise-free).
-        rtol: relative accuracy of the noise-free output (:func:`~torchpaml.simulate`: RK4's step doubling for
-            nonlinear physics; the exact path is exact). The default, :data:`MEASUREMENT_RTOL`, reaches sharp
-            corners (a dead zone, Coulomb friction) within 64 substeps.
-        atol: absolute tolerance, for a torchdiffeq solver.
+        rtol: relative accuracy of the noise-free output (:func:`~torchpaml.simulate` with ``Auto(rtol)``: the
+            step doubling for nonlinear physics; the exact path is exact). The default, :data:`MEASUREMENT_RTOL`,
+            reaches sharp corners (a dead zone, Coulomb friction) within 64 substeps.
     """
 
     def __init__(
@@ -87,7 +86,6 @@ class Simulated(ExperimentSource):
         frequencies: list[float] | None = None,
         noise: float = 0.0,
         rtol: float = MEASUREMENT_RTOL,
-        atol: float = 1e-9,
     ):
         if signal not in ("sine", "cosine", "pseudorandom", "multisine"):
             raise ValueError(f"unknown signal {signal!r}; use 'sine', 'cosine', 'pseudorandom' or 'multisine'")
@@ -97,7 +95,7 @@ class Simulated(ExperimentSource):
         self.seeds = [0] if seeds is None else list(seeds)
         self.duration, self.dt, self.omega, self.knot_period = duration, dt, omega, knot_period
         self.frequencies = [0.1, 0.2, 0.3, 0.5, 0.7] if frequencies is None else list(frequencies)
-        self.noise, self.rtol, self.atol = float(noise), rtol, atol
+        self.noise, self.rtol = float(noise), rtol
 
     def inputs(self, t: torch.Tensor) -> torch.Tensor:
         """The input of every seed, (seeds, time, 1)."""
@@ -116,9 +114,8 @@ class Simulated(ExperimentSource):
     def experiments(self) -> list[Experiment]:
         t = time_grid(self.duration, self.dt)
         u = self.inputs(t)
-        knots = pseudorandom_knots(t, self.knot_period) if self.signal == "pseudorandom" else None
         with torch.no_grad():
-            y = simulate(self.system, t, u, rtol=self.rtol, atol=self.atol, knots=knots)
+            y = simulate(self.system, t, u, solver=Auto(rtol=self.rtol))
         records = []
         for i, seed in enumerate(self.seeds):
             generator = torch.Generator().manual_seed(10_000 + seed)

@@ -45,7 +45,7 @@ def compare(
     Args:
         models: label -> a physics model or any callable ``model(t, u) -> y`` (batch, time, n_y).
         experiments: one record or several (names must differ).
-        simulate_options: forwarded to the models (e.g. ``rtol``, ``method``).
+        simulate_options: forwarded to the models (e.g. ``solver=Dopri5()``, :func:`~torchpaml.simulate`).
     """
     records = [experiments] if isinstance(experiments, Experiment) else list(experiments)
     names = [r.name for r in records]

@@ -27,6 +27,7 @@ from torchpaml._physics.terms import variables_of
 from torchpaml._residual.mlp import MLPRate, RateAugmented
 from torchpaml._simulate.records import record_output, record_states
 from torchpaml._simulate.warm import WarmStart
+from torchpaml._simulate.solvers import engine_solver
 
 __all__ = ["NeuralForceFit", "fit_neural_force"]
 
@@ -76,7 +77,7 @@ def fit_neural_force(
     warm = [WarmStart() for _ in records]
 
     def predict() -> torch.Tensor:
-        return torch.cat([record_output(model, r, x0, method="rk4", warm=w).flatten()
+        return torch.cat([record_output(model, r, x0, solver=engine_solver(model), warm=w).flatten()
                           for r, x0, w in zip(records, starts, warm, strict=True)])
 
     target = torch.cat([r.y.flatten() for r in records])

@@ -20,7 +20,9 @@ Trial steps whose simulation blows up are rejected by the trust region (their re
 a start that blows up raises :class:`~torchpaml._errors.SimulationError`.
 
 **The step check** (:mod:`torchpaml._fit.resolution`): at the optimum the output must not depend on the
-RK4 step; where it does, the model's ``substeps`` grow and the fit goes on from the optimum.
+solver's step; where it does, the substeps grow and the fit goes on from the optimum. With the default
+solver, an optimum that RK4 cannot resolve (stiff physics) goes on with the implicit TR-BDF2. The fit
+returns the solver it resolved (``PhysicsEstimate.solver``) and sets it on the model (``physics.solver``).
 """
 
 from __future__ import annotations
@@ -35,13 +37,16 @@ import torch
 from scipy.optimize import least_squares
 
 from torchpaml._data import Experiment
-from torchpaml._errors import SimulationError
-from torchpaml._fit.resolution import resolved_substeps
+from torchpaml._errors import ResolutionError, SimulationError
+from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
 from torchpaml._parameters import record_uncertainty
 from torchpaml._physics.base import complete_state
 from torchpaml._simulate.records import record_jacobian
+from torchpaml._simulate.lti import exact_step
 from torchpaml._simulate.sensitivity import raw_parameters
+from torchpaml._simulate.stiffness import STIFF_SUBSTEPS
+from torchpaml._simulate.solvers import TRBDF2, Auto, Exact, FixedStep, Solver, engine_solver
 from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["PhysicsEstimate", "estimate_initial_state", "fit_physics"]
@@ -61,7 +66,8 @@ class PhysicsEstimate:
         uncertainty: standard errors, 95 % intervals and the identifiability check of ``parameters``
             (and of the initial states, named ``x0[record].state``, where they were estimated).
         initial_states: each record's initial state (n_state,): rest, or the estimate.
-        substeps: the RK4 steps per sample interval the fit ended at (the step check), also set on the model.
+        solver: the solver the fit ended with (the step check): RK4 or TRBDF2 at whole substeps, or ``Exact()``
+            where every record takes the exact path; also set on the model (``physics.solver``).
     """
 
     parameters: dict[str, float]
@@ -71,7 +77,7 @@ class PhysicsEstimate:
     evaluations: int
     uncertainty: Uncertainty
     initial_states: list[torch.Tensor]
-    substeps: int
+    solver: Solver
 
 
 def _raw_bounds(physics, names: list[str], bounds: dict[str, tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
@@ -106,7 +112,7 @@ def fit_physics(
     warm: Sequence[WarmStart] | None = None,
     max_nfev: int = 60,
     ftol: float = 1e-10,
-    **simulate_options,
+    solver: Solver | None = None,
 ) -> PhysicsEstimate:
     r"""Fit the learnable physical parameters of ``physics`` in place to the records (module docstring).
 
@@ -124,14 +130,16 @@ def fit_physics(
         max_nfev: iteration limit of the trust region.
         ftol: the trust region stops when a step lowers the cost $\tfrac12\|r\|^2$ by less than this share of it
             (scipy's ``ftol``); the default fits to the last digits, a ranking's refits stop earlier.
-        simulate_options: ``segment`` of the RK4 engine, and ``substeps``: RK4 steps per sample interval to
-            start from (default the model's own); the step check raises them where the fitted output
-            depends on the step (:mod:`torchpaml._fit.resolution`).
+        solver: ``RK4(...)`` or ``TRBDF2(...)``: the method and the substeps to start from (``"auto"``: one), or
+            ``Auto()``/``None`` (the default): the model's own solver where it is one of those, else RK4 at one
+            substep, and TR-BDF2 where RK4 cannot resolve the optimum. The step check raises the substeps where
+            the fitted output depends on the step (:mod:`torchpaml._fit.resolution`).
     """
     if initial_state not in ("rest", "estimate"):
         raise ValueError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
     estimate_x0 = initial_state == "estimate"
-    physics.substeps = simulate_options.pop("substeps", physics.substeps)
+    switch = solver is None or isinstance(solver, Auto)  # may go on with the implicit method
+    solver = _starting_solver(physics, solver)
     records = [records] if isinstance(records, Experiment) else list(records)
     if start_states is not None and (not estimate_x0 or len(start_states) != len(records)):
         raise ValueError(f"start_states needs initial_state='estimate' and one state per record ({len(records)}), got "
@@ -164,7 +172,7 @@ def fit_physics(
             with torch.no_grad():
                 for tensor, value in zip(raw, x, strict=False):
                     tensor.copy_(torch.tensor(value, dtype=torch.float64))
-            parts = [record_jacobian(physics, names, r, x0, warm=w, initial_state=estimate_x0, **simulate_options)
+            parts = [record_jacobian(physics, names, r, x0, warm=w, initial_state=estimate_x0, solver=solver)
                      for r, w, x0 in zip(records, warm, starts(x), strict=True)]
             residual = torch.cat([(y - y_hat).flatten() for y, (y_hat, _) in zip(targets, parts, strict=True)]) / scale
             columns = []
@@ -196,16 +204,26 @@ def fit_physics(
         return least_squares(fun, x, jac=lambda x: evaluate(x)[1], bounds=(lower, upper), method="trf",
                              x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
 
-    def resolution(x: np.ndarray) -> int:
-        """The step check's substeps at ``x`` (the model set to ``x`` first)."""
+    def resolution(x: np.ndarray) -> FixedStep:
+        """The step check's solver at ``x`` (the model set to ``x`` first)."""
         evaluate(x)
-        return resolved_substeps(physics, records, starts(x), float(np.linalg.norm(fun(x))))
+        try:
+            return resolved_solver(physics, solver, records, starts(x), float(np.linalg.norm(fun(x))),
+                                   STIFF_SUBSTEPS if switch else MAX_SUBSTEPS)
+        except ResolutionError:
+            if not switch or isinstance(solver, TRBDF2):
+                raise
+            return TRBDF2(substeps=1, segment=solver.segment)  # stiff (or unresolved) for RK4: the implicit method
 
-    result = solve(start)
-    while (substeps := resolution(result.x)) != physics.substeps:  # go on from the optimum at the finer step
-        physics.substeps = substeps
-        memo.clear()
-        result = solve(result.x)
+    x, result = start, None
+    while (resolved := resolution(x)) != solver or result is None:  # checked at the start, then at each optimum
+        if resolved != solver:
+            solver = resolved
+            memo.clear()
+        result = solve(x)
+        x = result.x
+    linear = all(exact_step(physics, r.t) is not None for r in records)
+    physics.solver = Exact() if linear else solver
     residual, jacobian = evaluate(result.x)
     values = physics.physical_parameters()
     residual, jacobian = torch.from_numpy(residual.copy()), torch.from_numpy(jacobian.copy())
@@ -219,10 +237,21 @@ def fit_physics(
     record_uncertainty(physics, {n: uncertainty.std[n] for n in names}, uncertainty.interval)
     warn_if_unidentifiable(uncertainty, physics.display_name)
     return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,
-                           jacobian, count["simulations"], uncertainty, initial_states, physics.substeps)
+                           jacobian, count["simulations"], uncertainty, initial_states, physics.solver)
 
 
-def estimate_initial_state(physics, record: Experiment, samples: int | None = None, **simulate_options) -> torch.Tensor:
+def _starting_solver(physics, solver: Solver | None) -> FixedStep:
+    """The fixed-step solver a fit starts from (``fit_physics``'s ``solver``)."""
+    if solver is None or isinstance(solver, Auto):
+        return engine_solver(physics)
+    if not isinstance(solver, FixedStep):
+        raise ValueError(f"fit_physics integrates with RK4(...) or TRBDF2(...) (or the default), got {solver!r}; "
+                         "linear physics on a uniform grid takes the exact path by itself")
+    return solver.at(1) if solver.substeps == "auto" else solver
+
+
+def estimate_initial_state(physics, record: Experiment, samples: int | None = None,
+                           solver: Solver | None = None) -> torch.Tensor:
     """The initial state (n_state,) that best explains the first ``samples`` of ``record`` (all if ``None``).
 
     The parameters stay as they are: a frozen copy of ``physics`` goes through :func:`fit_physics`
@@ -232,4 +261,4 @@ def estimate_initial_state(physics, record: Experiment, samples: int | None = No
     frozen = copy.deepcopy(physics)
     frozen.set_learnable(*frozen.learnable_names(), learn=False)
     window = record if samples is None else record.window(0, samples)
-    return fit_physics(frozen, window, initial_state="estimate", **simulate_options).initial_states[0]
+    return fit_physics(frozen, window, initial_state="estimate", solver=solver).initial_states[0]

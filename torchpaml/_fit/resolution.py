@@ -1,12 +1,12 @@
-r"""The step check: a fitted model's output must not depend on the RK4 step.
+r"""The step check: a fitted model's output must not depend on the solver's step.
 
-The RK4 engine advances each sample interval $h$ in $m$ = ``physics.substeps`` steps. After a fit, the
-records are simulated again at $2m$; the gap
+The shooting engine advances each sample interval $h$ in $m$ steps of the fit's solver (RK4 or
+TR-BDF2). After a fit, the records are simulated again at $2m$; the gap
 
 $$ g = \frac{\|\hat y_m - \hat y_{2m}\|}{\|y\|} $$
 
-estimates the discretisation error of $\hat y_m$ (RK4 is fourth order: that error is $\tfrac{16}{15}g$
-where the solution is smooth). The fit stands when $g \le$ :data:`STEP_TOLERANCE` $\cdot\,\|r\|$, with
+estimates the discretisation error of $\hat y_m$ (a method of order $p$: that error is
+$g / (1 - 2^{-p})$ where the solution is smooth, $\tfrac{16}{15}g$ for RK4). The fit stands when $g \le$ :data:`STEP_TOLERANCE` $\cdot\,\|r\|$, with
 $\|r\| = \|y - \hat y\|/\|y\|$ the misfit, or when $g \le$ :data:`STEP_FLOOR` (a noiseless record fitted
 exactly): the step then moves a printed mismatch by a tenth of it at most. Otherwise $m$ grows by the
 power of two that fourth order predicts brings $g$ to half the tolerance
@@ -15,8 +15,10 @@ doubling follows), and the fit goes on from its optimum at the finer step, until
 
 Beyond :data:`MAX_SUBSTEPS` it raises :class:`~torchpaml._errors.ResolutionError`: a rate of the fitted
 model is far faster than the sampling (a spill at 40 1/s in a record sampled every 4 s), and the fit
-settles where RK4's error, not the physics, explains the data. The fix is to bound that rate, or to
-sample faster. Records on the exact path (linear physics on a uniform grid) have no step error.
+settles where RK4's error, not the physics, explains the data. :func:`~torchpaml._fit.fit_physics` with
+its default solver then goes on with the implicit TR-BDF2, which integrates such a rate at one step per
+sample; with a solver the user chose it raises. Records on the exact path (linear physics on a uniform
+grid) have no step error.
 """
 
 from __future__ import annotations
@@ -27,50 +29,71 @@ from collections.abc import Sequence
 import torch
 
 from torchpaml._data import Experiment
-from torchpaml._errors import ResolutionError
+from torchpaml._errors import ResolutionError, SimulationError
 from torchpaml._simulate.lti import exact_step
-from torchpaml._simulate.records import simulate_record
+from torchpaml._simulate.records import record_states, simulate_record
+from torchpaml._simulate.solvers import RK4, TRBDF2, FixedStep
 from torchpaml._simulate.step_control import MAX_SUBSTEPS, next_substeps
+from torchpaml._simulate.stiffness import stable_substeps, stiffness
 
-__all__ = ["MAX_SUBSTEPS", "STEP_FLOOR", "STEP_TOLERANCE", "resolved_substeps", "step_gap"]
+__all__ = ["MAX_SUBSTEPS", "STEP_FLOOR", "STEP_TOLERANCE", "resolved_solver", "step_gap"]
 
 STEP_TOLERANCE = 0.1
 STEP_FLOOR = 1e-6
 
 
-def step_gap(physics, records: Sequence[Experiment], states: Sequence[torch.Tensor | None]) -> float:
-    """$g$ (module docstring) over the records that RK4 simulates, from each record's initial state (or rest);
-    0 where every record takes the exact path."""
-    m = physics.substeps
+def step_gap(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None]
+             ) -> float:
+    """$g$ (module docstring) of ``solver`` over the records that the engine simulates, from each record's initial
+    state (or rest); 0 where every record takes the exact path."""
     squared, norm = 0.0, 0.0
     for record, x0 in zip(records, states, strict=True):
         if exact_step(physics, record.t) is not None:
             continue
-        coarse = simulate_record(physics, record, x0)
-        fine = simulate_record(physics, record, x0, substeps=2 * m)
+        coarse = simulate_record(physics, record, x0, solver=solver)
+        fine = simulate_record(physics, record, x0, solver=solver.at(2 * solver.substeps))
         squared += float((coarse - fine).square().sum())
         norm += float(record.y.square().sum())
     return 0.0 if norm == 0.0 else math.sqrt(squared / norm)
 
 
-def resolved_substeps(physics, records: Sequence[Experiment], states: Sequence[torch.Tensor | None],
-                      misfit: float) -> int:
-    """The substeps at which the fitted ``physics`` passes the step check (module docstring): its own where it
-    passes, else the next power-of-two multiple predicted to pass. Raises
-    :class:`~torchpaml._errors.ResolutionError` beyond :data:`MAX_SUBSTEPS`."""
-    m = physics.substeps
-    gap = step_gap(physics, records, states)
+def _probe(physics, record: Experiment, x0: torch.Tensor | None, solver: FixedStep) -> torch.Tensor:
+    """The trajectory whose rates judge an explicit step's stability: the L-stable TR-BDF2's at one substep, which
+    follows the physics into a stiff region that an unstable explicit step can leave unseen; ``solver``'s own
+    where TR-BDF2's Newton does not converge (a corner it cannot resolve at that step)."""
+    try:
+        return record_states(physics, record, x0, TRBDF2(substeps=1))
+    except SimulationError:
+        return record_states(physics, record, x0, solver)
+
+
+def resolved_solver(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None],
+                    misfit: float, most_stable: int = MAX_SUBSTEPS) -> FixedStep:
+    """The solver at the substeps where the fitted ``physics`` passes the step check (module docstring): ``solver``
+    where it passes; else, where its explicit step is unstable along the fitted trajectory, it at the substeps
+    that make it stable (:mod:`~torchpaml._simulate.stiffness`); else it at the next power-of-two multiple its
+    order predicts to pass. Raises :class:`~torchpaml._errors.ResolutionError` beyond :data:`MAX_SUBSTEPS`, or
+    where stability alone needs more than ``most_stable``."""
+    m = solver.substeps
+    if isinstance(solver, RK4):  # explicit: its step must be stable along the trajectory
+        sigma = max((stiffness(physics, r.t - r.t[0], r.u[None], _probe(physics, r, x0, solver)[None])
+                     for r, x0 in zip(records, states, strict=True) if exact_step(physics, r.t) is None), default=0.0)
+        stable = stable_substeps(solver, sigma, most_stable)
+        if stable != m:  # the step doubling cannot judge an unstable step
+            return solver.at(stable)
+    gap = step_gap(physics, solver, records, states)
     allowed = STEP_TOLERANCE * misfit
     if gap <= max(allowed, STEP_FLOOR):
-        return m
-    following = next_substeps(m, gap, max(allowed, STEP_FLOOR))
+        return solver
+    following = next_substeps(m, gap, max(allowed, STEP_FLOOR), solver.order)
     if following > MAX_SUBSTEPS:
         step = float(records[0].t[1] - records[0].t[0])
+        method = type(solver).__name__
         raise ResolutionError(
-            f"{physics.display_name}'s fitted output depends on the RK4 step: halving the step at {m} substeps per "
-            f"sample moves it by {100 * gap:.3g} % of the output, against a misfit of {100 * misfit:.3g} %, and "
+            f"{physics.display_name}'s fitted output depends on the {method} step: halving the step at {m} substeps "
+            f"per sample moves it by {100 * gap:.3g} % of the output, against a misfit of {100 * misfit:.3g} %, and "
             f"resolving it needs more than {MAX_SUBSTEPS} substeps. A rate of the fitted model is far faster than "
             f"the sampling (h = {step:g} s), and the fit settled where the integration error explains the data. "
-            f"Bound that rate (physics.bound(name, lower, upper)) to what the sampling resolves, or sample faster. "
-            f"Parameters: {physics.physical_parameters()}")
-    return following
+            f"Fit with solver=TRBDF2() (implicit, for stiff physics), bound that rate (physics.bound(name, lower, "
+            f"upper)) to what the sampling resolves, or sample faster. Parameters: {physics.physical_parameters()}")
+    return solver.at(following)

@@ -70,16 +70,16 @@ def state_vector(columns: list[torch.Tensor]) -> torch.Tensor:
 class AbstractPhysics(nn.Module):
     """Abstract ODE physics $\\dot x = f(t, x, u)$, $y = h(x, u)$. Subclasses define the two maps.
 
-    ``substeps``: the RK4 steps per sample interval at which calling the model, ``physics(t, u)``, simulates
-    it (training loops, fits), and where :func:`~torchpaml.simulate`'s step doubling starts;
-    :func:`~torchpaml._fit.fit_physics` raises it until the fitted model's output no longer depends on the
-    step (:mod:`torchpaml._fit.resolution`). Linear physics on a uniform grid takes the exact path and
-    ignores it.
+    ``solver``: the :mod:`solver <torchpaml._simulate.solvers>` with which calling the model, ``physics(t, u)``,
+    simulates it (training loops, the diagnosis of a fitted model): ``None`` (the default, ``Auto()``) until
+    :func:`~torchpaml._fit.fit_physics` sets the one its step check resolved (``PhysicsEstimate.solver``: RK4
+    or TR-BDF2 at the substeps where the fitted output no longer depends on the step,
+    :mod:`torchpaml._fit.resolution`; ``Exact()`` for linear physics). A solver is a frozen value.
     """
 
     state_names: tuple[str, ...] = ()
     input_dim: int = 1
-    substeps: int = 1
+    solver = None
     output_dim: int = 1
 
     @property
@@ -108,12 +108,13 @@ class AbstractPhysics(nn.Module):
         """Rest, shape (batch, n_state)."""
         return torch.zeros(batch, self.state_dim, dtype=torch.float64)
 
-    def forward(self, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None, **options) -> torch.Tensor:
-        """Simulate at the model's own ``substeps`` unless told otherwise: t (time,), u (batch, time, n_input) -> y
+    def forward(self, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None, *, solver=None,
+                **options) -> torch.Tensor:
+        """Simulate with the model's own ``solver`` unless given one: t (time,), u (batch, time, n_input) -> y
         (batch, time, n_output). See :func:`simulate`."""
         from torchpaml._simulate.simulator import simulate
 
-        return simulate(self, t, u, x0, **{"substeps": self.substeps, **options})
+        return simulate(self, t, u, x0, solver=self.solver if solver is None else solver, **options)
 
     def __add__(self, effect):
         """``physics + effect`` -> :class:`~torchpaml._physics.ComposedModel`; ``TypeError`` where the effect does not apply."""

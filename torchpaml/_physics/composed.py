@@ -23,6 +23,7 @@ from torch import nn
 from torchpaml._parameters import describe_parameters, format_table
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
 from torchpaml._physics.effects import AbstractEffect
+from torchpaml._simulate.solvers import inherited_solver
 
 __all__ = ["ComposedModel", "compose"]
 
@@ -35,7 +36,7 @@ def compose(physics, effect: AbstractEffect) -> ComposedModel:
         model = ComposedModel(physics.base, [*physics.effects.values(), effect])
     else:
         model = ComposedModel(physics, [effect])
-    model.substeps = physics.substeps  # the resolution the physics was fitted at
+    model.solver = inherited_solver(physics)  # the solver the physics was fitted with
     return model
 
 
@@ -64,7 +65,7 @@ class ComposedModel(AbstractPhysics):
         self.state_names = (*base.state_names,
                             *(f"{e.name}.{s.name}" for e in effects for s in e.own_states))
         self.input_dim, self.output_dim = base.input_dim, base.output_dim
-        self.substeps = base.substeps
+        self.solver = inherited_solver(base)
 
     def _own(self, x: torch.Tensor) -> tuple[torch.Tensor, dict[str, tuple[torch.Tensor, ...]]]:
         """The base's states (..., n_base) and, per effect, the extra hook argument: ``(z,)`` (..., k) for an

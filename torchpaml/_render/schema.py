@@ -35,14 +35,21 @@ def evidence_to_dict(evidence: EffectEvidence) -> dict:
 
 
 def ladder_to_dicts(ladder: Ladder) -> list[dict]:
-    """One dict per rung of the ladder (``substeps``: the RK4 steps per sample the rung was fitted and scored at)."""
+    """One dict per rung of the ladder (``solver``: the method the rung was fitted and scored with, ``"Exact"``,
+    ``"RK4"`` or ``"TRBDF2"``; ``substeps``: its steps per sample interval, 1 on the exact path)."""
     return [
         {"model": s.name, "equation": s.equation, "added": None if i == 0 else ladder.added[i - 1],
          "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
          "parameters": s.parameters, "uncertainty": _errors(s.uncertainty), "identifiability": s.warning,
-         "substeps": s.model.substeps}
+         **_solver(s.model.solver)}
         for i, s in enumerate(ladder.steps)
     ]
+
+
+def _solver(solver) -> dict:
+    """``{solver, substeps}`` of a rung's model: ``{"Auto", None}`` for a model that no fit resolved."""
+    return {"solver": "Auto", "substeps": None} if solver is None else \
+        {"solver": type(solver).__name__, "substeps": solver.substeps}
 
 
 def hybrid_to_dict(hybrid: HybridScore) -> dict:

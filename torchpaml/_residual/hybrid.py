@@ -14,6 +14,7 @@ from torch import nn
 from torchpaml._residual.base import AbstractResidual
 from torchpaml._residual.mlp import ForceAugmented, MLPForce
 from torchpaml._simulate.warm import WarmStart
+from torchpaml._simulate.solvers import Solver
 
 __all__ = ["Hybrid"]
 
@@ -21,9 +22,10 @@ __all__ = ["Hybrid"]
 class Hybrid(nn.Module):
     """``physics`` plus ``residual`` (an output residual or an :class:`MLPForce`).
 
-    ``forward(t, u, **simulate_options)`` returns ``(y_physics, y_hybrid)``, both (batch, time, n_y).
-    A ``warm`` option (see :func:`~torchpaml.simulate`) serves the hybrid's simulation only, so that
-    the two simulations of a nonlinear model do not overwrite each other's states.
+    ``forward(t, u, warm=None, solver=None)`` returns ``(y_physics, y_hybrid)``, both (batch, time, n_y). The
+    physics simulates with its own solver. ``warm`` and ``solver`` (see :func:`~torchpaml.simulate`) serve the
+    hybrid's simulation with a learned force only, so that the two simulations of a nonlinear model do not
+    overwrite each other's states.
     """
 
     def __init__(self, physics: nn.Module, residual: nn.Module):
@@ -41,8 +43,8 @@ class Hybrid(nn.Module):
         return isinstance(self.residual, MLPForce)
 
     def forward(self, t: torch.Tensor, u: torch.Tensor, warm: WarmStart | None = None,
-                **simulate_options) -> tuple[torch.Tensor, torch.Tensor]:
-        y_physics = self.physics(t, u, **simulate_options)
+                solver: Solver | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        y_physics = self.physics(t, u)
         if self.in_ode:
-            return y_physics, ForceAugmented(self.physics, self.residual)(t, u, warm=warm, **simulate_options)
+            return y_physics, ForceAugmented(self.physics, self.residual)(t, u, warm=warm, solver=solver)
         return y_physics, y_physics + self.residual(t, u, y_physics)

@@ -17,7 +17,8 @@ from torchpaml._errors import DataError, SimulationError
 from torchpaml._physics.base import complete_state
 from torchpaml._grid import uniform_step
 from torchpaml._simulate.lti import simulate_lti
-from torchpaml._simulate.shooting import solve_rk4
+from torchpaml._simulate.shooting import solve_shooting
+from torchpaml._simulate.solvers import engine_solver
 from torchpaml._simulate.simulator import checked_output
 
 __all__ = ["Secant", "TangentLinear", "assigned"]
@@ -99,7 +100,7 @@ class TangentLinear:
 
 
 class Secant:
-    """Outputs of ``base + effect`` near the base, by RK4 simulations warm-started from the base's trajectory.
+    """Outputs of ``base + effect`` near the base, by simulations in the shooting engine warm-started from the base's trajectory.
 
     For a nonlinear base (or non-uniform records), where :class:`TangentLinear` does not apply. A probe
     at a small strength stays close to the base, so Newton, started from the base's converged states,
@@ -111,7 +112,8 @@ class Secant:
         with torch.no_grad():
             for record, x0 in zip(train, initial_states, strict=True):
                 t, u, start, hold = record.t - record.t[0], record.u[None], x0.reshape(1, -1), record.hold
-                guess = solve_rk4(base, t, u, start, sensitivities=False, hold=hold).trajectory
+                guess = solve_shooting(base, t, u, start, engine_solver(base), sensitivities=False,
+                                       hold=hold).trajectory
                 self.records.append((t, u, start, hold, guess))
 
     def outputs(self, extended) -> torch.Tensor:
@@ -120,7 +122,8 @@ class Secant:
         with torch.no_grad():
             for t, u, start, hold, guess in self.records:
                 start = complete_state(extended, start, 1)  # an effect's own states start at their declared values
-                states = solve_rk4(extended, t, u, start, sensitivities=False, guess=guess, hold=hold).trajectory
+                states = solve_shooting(extended, t, u, start, engine_solver(extended), sensitivities=False,
+                                        guess=guess, hold=hold).trajectory
                 parts.append(checked_output(extended.output(states, u), t).flatten())
         return torch.cat(parts)
 

@@ -16,7 +16,8 @@ import torch
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._simulate.response import forced_response
 from torchpaml._simulate.sensitivity import output_jacobian
-from torchpaml._simulate.shooting import simulate_rk4
+from torchpaml._simulate.shooting import simulate_shooting
+from torchpaml._simulate.solvers import FixedStep, engine_solver
 from torchpaml._simulate.warm import WarmStart
 
 if TYPE_CHECKING:  # records are built on the simulator (the Simulated source): imported for annotations only
@@ -32,7 +33,7 @@ def _start(x0: torch.Tensor | None) -> torch.Tensor | None:
 def record_output(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor | None = None,
                   **options) -> torch.Tensor:
     """The model's output on ``record``, (1, time, n_output), differentiable when grad mode is on; ``options``
-    go to :func:`~torchpaml.simulate` (through the model's ``forward``: its own ``substeps``)."""
+    go to :func:`~torchpaml.simulate` (through the model's ``forward``: its own ``solver`` unless given one)."""
     return physics(record.t - record.t[0], record.u[None], _start(x0), hold=record.hold, **options)
 
 
@@ -44,20 +45,23 @@ def simulate_record(physics: AbstractPhysics, record: Experiment, x0: torch.Tens
         return record_output(physics, record, x0, **options)
 
 
-def record_states(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor | None = None) -> torch.Tensor:
-    """The states on ``record`` by the RK4 engine at the model's ``substeps``, (time, n_state), without gradients."""
+def record_states(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor | None = None,
+                  solver: FixedStep | None = None) -> torch.Tensor:
+    """The states on ``record`` by the shooting engine with ``solver`` (default the model's,
+    :func:`~torchpaml._simulate.solvers.engine_solver`), (time, n_state), without gradients."""
     start = physics.initial_state(1) if x0 is None else _start(x0)
     with torch.no_grad():
-        return simulate_rk4(physics, record.t - record.t[0], record.u[None], start, hold=record.hold)[0]
+        return simulate_shooting(physics, record.t - record.t[0], record.u[None], start,
+                                 engine_solver(physics) if solver is None else solver, hold=record.hold)[0]
 
 
 def record_jacobian(physics: AbstractPhysics, names: Sequence[str], record: Experiment,
                     x0: torch.Tensor | None = None, warm: WarmStart | None = None, initial_state: bool = False,
-                    **options) -> tuple[torch.Tensor, torch.Tensor]:
+                    solver: FixedStep | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """:func:`~torchpaml._simulate.sensitivity.output_jacobian` on ``record``: the output and its Jacobian in
     the raw parameters ``names`` (and, with ``initial_state``, in ``x0``)."""
     return output_jacobian(physics, names, record.t - record.t[0], record.u[None], _start(x0), warm=warm,
-                           initial_state=initial_state, hold=record.hold, **options)
+                           initial_state=initial_state, hold=record.hold, solver=solver)
 
 
 def record_response(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor, rates: torch.Tensor

@@ -21,9 +21,11 @@ from __future__ import annotations
 import torch
 
 from torchpaml._physics.base import AbstractPhysics
-from torchpaml._simulate.shooting import simulate_rk4
+from torchpaml._simulate.shooting import simulate_shooting
+from torchpaml._simulate.solvers import engine_solver
 from torchpaml._simulate.simulator import simulate
 from torchpaml._simulate.warm import WarmStart
+from torchpaml._simulate.solvers import inherited_solver
 
 __all__ = ["forced_response"]
 
@@ -41,7 +43,7 @@ class _Injected(AbstractPhysics):
         self.physics = physics
         self.state_names, self.output_dim = physics.state_names, physics.output_dim
         self.input_dim = physics.input_dim + physics.state_dim
-        self.substeps = physics.substeps
+        self.solver = inherited_solver(physics)
 
     def derivative(self, t, x, u):
         m = self.physics.input_dim
@@ -89,7 +91,7 @@ def forced_response(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
                 inputs = torch.cat([drive.expand(len(rows), -1, -1), rows], dim=-1)
                 parts.append(simulate(injected, t, inputs, rest.expand(len(rows), -1), hold=hold))
             return torch.cat(parts)
-        base = simulate_rk4(physics, t, u, x0, hold=hold)
+        base = simulate_shooting(physics, t, u, x0, engine_solver(physics), hold=hold)
         speed = physics.derivative(t, base[0], u[0]).square().mean(dim=0).sqrt()  # each rate's RMS (n,)
         for rows in rates.split(chunk):
             size = rows.square().mean(dim=1).sqrt()  # (rows, n)
@@ -97,7 +99,7 @@ def forced_response(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
             signed = torch.cat([eps * rows, -eps * rows])
             inputs = torch.cat([u.expand(len(signed), -1, -1), signed], dim=-1)
             starts = x0.expand(len(signed), -1)
-            y = injected(t, inputs, starts, method="rk4", warm=WarmStart(base.expand(len(signed), -1, -1)),
+            y = injected(t, inputs, starts, solver=engine_solver(physics), warm=WarmStart(base.expand(len(signed), -1, -1)),
                          hold=hold)
             parts.append((y[: len(rows)] - y[len(rows):]) / (2 * eps))
     return torch.cat(parts)

@@ -11,9 +11,10 @@ $J_{t,j} = \partial \hat y_t / \partial \rho_j$ for the raw (unconstrained) para
 
   so one filter run with a row per column gives them all, after one run for the states. The primed
   matrices come from central differences of (A, B, C, D) and the exponential's Fréchet derivative;
-* otherwise: Newton runs once (:func:`~torchpaml._simulate.shooting.solve_rk4`), then each column is a
-  central difference of two single sweeps from the converged starts plus the implicit-function
-  correction (:meth:`~torchpaml._simulate.shooting.RK4Solution.states`), not of whole simulations.
+* otherwise: Newton runs once (:func:`~torchpaml._simulate.shooting.solve_shooting`, RK4 or TR-BDF2), then
+  each column is a central difference of two single sweeps from the converged starts plus the
+  implicit-function correction (:meth:`~torchpaml._simulate.shooting.ShootingSolution.states`), not of
+  whole simulations.
 
 Central differences take the step :data:`DIFFERENCE_STEP` (error ~1e-10 relative).
 
@@ -23,8 +24,8 @@ operation itself, and a physics' step is full of them. On the exact path the rec
 filter runs for all columns, where differences of whole simulations need 2p + 1.
 
 With ``initial_state=True`` the Jacobian gains one column per state, $\partial\hat y_t/\partial x_{0,i}$:
-on the exact path the free response $C\Phi^k e_i$ (rows of the same filter run with $S_0 = e_i$), on
-RK4 the same passes as the parameters' with the initial state as the direction.
+on the exact path the free response $C\Phi^k e_i$ (rows of the same filter run with $S_0 = e_i$), in
+the engine the same passes as the parameters' with the initial state as the direction.
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ from torch.func import functional_call
 from torchpaml._grid import check_hold
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._simulate.lti import discrete_response, discretize, exact_step, foh_exponent
-from torchpaml._simulate.shooting import RK4Solution, solve_rk4
+from torchpaml._simulate.shooting import ShootingSolution, solve_shooting
+from torchpaml._simulate.solvers import FixedStep, engine_solver
 from torchpaml._simulate.simulator import checked_output
 from torchpaml._simulate.warm import WarmStart
 
@@ -57,9 +59,9 @@ def raw_parameters(physics, names: Sequence[str]) -> dict[str, torch.Tensor]:
 
 
 class _Tail(nn.Module):
-    """The differentiable part of an RK4 solution and the output map, as a module for ``functional_call``."""
+    """The differentiable part of a shooting solution and the output map, as a module for ``functional_call``."""
 
-    def __init__(self, physics, solution: RK4Solution, x0: torch.Tensor, u: torch.Tensor):
+    def __init__(self, physics, solution: ShootingSolution, x0: torch.Tensor, u: torch.Tensor):
         super().__init__()
         self.physics, self.solution, self.x0, self.u = physics, solution, x0, u
 
@@ -154,7 +156,7 @@ def _directional(function, value: torch.Tensor, direction: torch.Tensor) -> torc
 
 def output_jacobian(
     physics: AbstractPhysics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
-    warm: WarmStart | None = None, initial_state: bool = False, hold: str = "foh", **options
+    warm: WarmStart | None = None, initial_state: bool = False, hold: str = "foh", solver: FixedStep | None = None
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Output and its Jacobian in the raw parameters ``names`` (module docstring).
 
@@ -166,7 +168,9 @@ def output_jacobian(
             iterations): the RK4 path stores its converged states in it and starts the next Newton solve from them.
         initial_state: also differentiate in ``x0``.
         hold: ``"foh"`` or ``"zoh"``, how the input moves between samples (:func:`~torchpaml._simulate.simulate`).
-        options: ``substeps``/``segment`` of the RK4 engine.
+        solver: RK4 or TRBDF2 at whole substeps (default the model's own,
+            :func:`~torchpaml._simulate.solvers.engine_solver`); linear physics on a uniform grid takes the
+            exact path.
 
     Returns:
         y (batch, time, n_output) and J (batch, time, n_output, p), or (..., p + n_state) with
@@ -179,9 +183,10 @@ def output_jacobian(
         raise ValueError(f"output_jacobian needs at least one parameter name; {physics.display_name} has "
                          f"{sorted(physics.physical_parameters())}")
     h = exact_step(physics, t)
-    if h is not None:  # the same routing as simulate(method="auto")
+    if h is not None:  # the same routing as simulate's Auto()
         return _exact_jacobian(physics, raw, h, t, u, x0.detach(), initial_state, check_hold(hold))
-    solution = solve_rk4(physics, t, u, x0, warm=warm, hold=hold, **options)
+    solution = solve_shooting(physics, t, u, x0, engine_solver(physics) if solver is None else solver, warm=warm,
+                              hold=hold)
     module = _Tail(physics, solution, x0, u)
     raw = {f"physics.{key}": value for key, value in raw.items()}
 

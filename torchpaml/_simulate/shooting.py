@@ -1,4 +1,4 @@
-r"""Fixed-step RK4 on the sample grid, parallel in time: multiple shooting with Newton on the segment starts.
+r"""Fixed-step methods on the sample grid, parallel in time: multiple shooting with Newton on the segment starts.
 
 **Why.** Eager PyTorch pays a dispatch cost of a few microseconds per operation, and an RK4 step of a
 small ODE is about a hundred operations, so a sample-by-sample loop costs the same per sample whether
@@ -6,9 +6,9 @@ it carries 1 row or 1000. The cost is the number of *sequential* steps, so this 
 
 **The step.** Between samples $t_k$ and $t_{k+1}$ ($h_k = t_{k+1} - t_k$, any spacing) the input is the
 first-order hold $u(\tau) = u_k + (\tau - t_k)(u_{k+1} - u_k)/h_k$ (or, with ``hold="zoh"``, $u_k$
-held), the hold the exact LTI path assumes. ``substeps`` classical RK4 steps of $h_k/m$ advance the
-state; the global error is
-$O(h^4)$ (tested: halving $h$ divides it by 16).
+held), the hold the exact LTI path assumes. ``substeps`` steps of $h_k/m$ of the solver's method
+(:mod:`~torchpaml._simulate.steps`: classical RK4, global error $O(h^4)$, tested: halving $h$ divides it
+by 16; or the implicit TR-BDF2, $O(h^2)$, for stiff physics) advance the state.
 
 **Multiple shooting.** The $N - 1$ steps are cut into $S$ segments of $L$ steps. From guesses $\xi_s$ of
 the state at the segment starts, all segments are integrated at once, one batch row each, together
@@ -21,7 +21,7 @@ $$ \xi^{+}_0 = x_0, \qquad \xi^{+}_{s+1} = e_s + G_s\,(\xi^{+}_s - \xi_s), $$
 
 a linear recurrence solved by a parallel scan (:func:`~torchpaml._simulate.scan.linear_recurrence`).
 After $j$ sweeps the first $j$ starts are exact, so the iteration ends after at most $S$ sweeps; for a
-smooth, stable system it converges quadratically, in a few. A sweep costs $L$ sequential RK4 steps on
+smooth, stable system it converges quadratically, in a few. A sweep costs $L$ sequential steps on
 $B \cdot S \cdot (2n + 1)$ rows. This is parallel-in-time Newton (DEER, Lim et al. 2024) applied to
 segments rather than single steps: inside a segment the integration stays nonlinear, which is what
 keeps Newton from diverging when a cubic term dominates.
@@ -30,8 +30,9 @@ keeps Newton from diverging when a cubic term dominates.
 iterate, a training run's previous step: ``warm``), else from the exact trajectory of the model's
 linear base (:func:`linear_guess`), else from $x_0$ held. Its sweeps take forward differences (n + 1
 rows per segment) until the defects are small, then central ones (2n + 1). The stage times and inputs
-of every step are laid out once per solve, the states are kept state-major (each state's column contiguous: :func:`~torchpaml._physics.state_vector`), and
-each RK4 stage is one fused ``addcmul``, so a step costs little more than its four calls of the physics.
+of every step are laid out once per solve, the states are kept state-major (each state's column
+contiguous: :func:`~torchpaml._physics.state_vector`), and each RK4 stage is one fused ``addcmul``, so an
+RK4 step costs little more than its four calls of the physics.
 
 **Gradients** (reverse and forward mode) come from the implicit function theorem. With the converged
 starts $\xi^*$ held fixed, one differentiable sweep gives $x_{s,k}(\xi^*_s;\theta)$ and $e_s(\theta)$. The
@@ -54,14 +55,11 @@ from torchpaml._errors import SimulationError
 from torchpaml._grid import check_hold
 from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.scan import linear_recurrence
+from torchpaml._simulate.solvers import FixedStep
+from torchpaml._simulate.steps import COEFFICIENTS, sweep
 from torchpaml._simulate.warm import WarmStart
 
-__all__ = ["RK4Solution", "SEGMENT_STEPS", "simulate_rk4", "solve_rk4"]
-
-#: Default segment length L (steps). A sweep costs L dispatch-bound steps plus arithmetic on every
-#: sample, which does not depend on L; 2 is the fastest of 1, 2, 4, 8 and 16 for simulations and
-#: nonlinear fits from 600 to 65 536 samples (benchmarks/bench_simulation.py).
-SEGMENT_STEPS = 2
+__all__ = ["ShootingSolution", "base_guess", "simulate_shooting", "solve_shooting"]
 #: Relative size of the start perturbations of the central differences (the sweep that feeds gradients).
 PERTURBATION = 1e-5
 #: Relative size of the start perturbations of the forward differences (Newton's G).
@@ -84,53 +82,33 @@ GROWTH = 8
 TRUST = 0.25
 
 
-def _rk4_sweep(physics, x: torch.Tensor, stages, substeps: int) -> torch.Tensor:
-    """Integrate the rows of ``x`` (rows, n) through the steps of ``stages`` (:meth:`_Layout.stages`).
-
-    The states are kept state-major (each state's column contiguous, see
-    :func:`~torchpaml._physics.state_vector`), and each RK4 stage is a fused ``addcmul``.
-
-    Returns:
-        states at the step boundaries, (n, L + 1, rows), contiguous.
-    """
-    x = x.t().contiguous().t()
-    states = [x.t()]
-    f = physics.derivative
-    for times, inputs, (half, step, sixth) in stages:
-        for j in range(substeps):
-            (t_a, t_mid, t_c), (u_a, u_mid, u_c) = times[2 * j : 2 * j + 3], inputs[2 * j : 2 * j + 3]
-            k1 = f(t_a, x, u_a)
-            k2 = f(t_mid, torch.addcmul(x, half, k1), u_mid)
-            k3 = f(t_mid, torch.addcmul(x, half, k2), u_mid)
-            k4 = f(t_c, torch.addcmul(x, step, k3), u_c)
-            x = torch.addcmul(x, sixth, torch.add(k1 + k4, k2 + k3, alpha=2))
-        states.append(x.t())
-    return torch.stack(states, dim=1)
-
-
 class _Layout:
     """The record cut into S segments of L steps, padded at the end with steps of length 0."""
 
-    def __init__(self, t: torch.Tensor, u: torch.Tensor, segment: int, substeps: int, hold: str = "foh"):
+    def __init__(self, t: torch.Tensor, u: torch.Tensor, solver: FixedStep, segment: int, hold: str = "foh"):
         batch, N, m = u.shape
         steps = N - 1
         segment = max(segment, math.ceil(batch * steps * 3 / CACHE_ROWS))
         self.L = max(1, min(segment, steps))
         self.S = math.ceil(steps / self.L)
         pad = self.S * self.L - steps
-        self.batch, self.N, self.substeps = batch, N, substeps
+        self.batch, self.N, self.solver = batch, N, solver
+        substeps = solver.substeps
         h = torch.cat([torch.diff(t), t.new_zeros(pad)]).reshape(self.S, self.L).t()  # (L, S)
         t0 = torch.cat([t[:-1], t[-1:].expand(pad)]).reshape(self.S, self.L).t()
         u0 = torch.cat([u[:, :-1], u[:, -1:].expand(batch, pad, m)], dim=1)
         u1 = torch.cat([u[:, 1:], u[:, -1:].expand(batch, pad, m)], dim=1)
-        # every stage's time and input (L, 2 substeps + 1, rows, ...) at the fractions j / (2 substeps), and the
-        # half, whole and sixth substep (L, 3, S, 1); the time and the steps are shared by the batch
-        fractions = torch.arange(2 * substeps + 1, dtype=t.dtype) / (2 * substeps)
+        # every stage's time and input (L, 2 substeps + 1, rows, ...) at the fractions j / substeps and
+        # (j + middle) / substeps, and the method's step coefficients times the substep (L, k, S, 1); the time and
+        # the steps are shared by the batch
+        points = (torch.arange(substeps, dtype=t.dtype)[:, None] + torch.tensor([0.0, solver.middle], dtype=t.dtype))
+        fractions = torch.cat([points.flatten(), torch.tensor([float(substeps)], dtype=t.dtype)]) / substeps
         self._times = t0[:, None] + fractions[:, None] * h[:, None]
         rows = lambda v: v.reshape(batch * self.S, self.L, m).transpose(0, 1)  # noqa: E731  (L, batch * S, m)
         start, change = rows(u0), rows(u1 - u0 if hold == "foh" else torch.zeros_like(u0))
         self._inputs = start[:, None] + fractions[:, None, None] * change[:, None]
-        self._steps = (h / substeps)[:, None, :, None] * torch.tensor([0.5, 1.0, 1 / 6], dtype=t.dtype)[:, None, None]
+        coefficients = torch.tensor(COEFFICIENTS[type(solver)], dtype=t.dtype)
+        self._steps = (h / substeps)[:, None, :, None] * coefficients[:, None, None]
         self._stages: dict[int, list] = {}
 
     def stages(self, copies: int):
@@ -155,7 +133,7 @@ class _Layout:
     def sweep(self, physics, starts: torch.Tensor, copies: int = 1) -> torch.Tensor:
         """starts (copies, batch, S, n) -> states (copies, batch, S, L + 1, n), a view of state-major memory."""
         n = starts.shape[-1]
-        states = _rk4_sweep(physics, starts.reshape(-1, n), self.stages(copies), self.substeps)
+        states = sweep(physics, self.solver, starts.reshape(-1, n), self.stages(copies))
         return states.reshape(n, self.L + 1, copies, self.batch, self.S).permute(2, 3, 4, 1, 0)
 
     def assemble(self, states: torch.Tensor) -> torch.Tensor:
@@ -229,7 +207,7 @@ def _newton(physics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: 
     $O(|\Delta\xi|^2)$, ~1e-14 relative at 1e-7, measured), which saves the sweep that would confirm it.
 
     Returns those states (batch, S, L+1, n) and, when ``differentiable``, T and the starts of the last
-    sweep (:meth:`RK4Solution.states` applies the same update, differentiably).
+    sweep (:meth:`ShootingSolution.states` applies the same update, differentiably).
     """
     warm = guess is not None and guess.shape[:2] == (x0.shape[0], layout.N) and bool(torch.isfinite(guess).all())
     if warm:
@@ -246,9 +224,10 @@ def _newton(physics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: 
         if not bool(finite[:sweep].all()):  # the first `sweep` starts are exact: the solution itself blows up
             s = int((~finite).nonzero()[0])
             raise SimulationError(
-                f"the RK4 simulation blew up (non-finite state) in the segment starting at t = "
-                f"{layout.time_of_segment(s):.4g} s; the parameters are probably unstable or unphysical (e.g. "
-                "negative damping), or the step is too long for the dynamics (raise substeps, or use method='dopri5')"
+                f"the {type(layout.solver).__name__} simulation blew up (non-finite state) in the segment starting at "
+                f"t = {layout.time_of_segment(s):.4g} s; the parameters are probably unstable or unphysical (e.g. "
+                "negative damping), or the step is too long for the dynamics (raise substeps, or use solver=TRBDF2() "
+                "for stiff physics)"
             )
         magnitude = ends.nan_to_num(0.0, 0.0, 0.0).abs().amax(dim=(0, 1))
         scale = torch.where(torch.isfinite(magnitude) & (magnitude > 0), magnitude, scale)
@@ -284,6 +263,22 @@ def linear_guess(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, ho
         return simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, m, dtype=A.dtype), h, u, x0, hold)
 
 
+def _completed(guess: torch.Tensor, x0: torch.Tensor) -> torch.Tensor:
+    """``guess`` (batch, time, k) with the states after its k held at ``x0`` (batch, n): the base's states of
+    ``physics + effect``, the effects' own states added."""
+    if guess.shape[-1] == x0.shape[-1]:
+        return guess
+    held = x0[:, None, guess.shape[-1]:].expand(-1, guess.shape[1], -1)
+    return torch.cat([guess, held.to(guess)], dim=-1)
+
+
+def base_guess(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, hold: str = "foh") -> torch.Tensor | None:
+    """Newton's start without a warm one: :func:`linear_guess` from ``x0`` (batch, n), the states of effects that
+    the linear base does not have held at ``x0``; ``None`` without a linear base or a uniform grid."""
+    guess = linear_guess(physics, t, u, x0[..., :_linear_states(physics, x0.shape[-1])], hold)
+    return None if guess is None else _completed(guess, x0)
+
+
 def _linear_states(physics, n: int) -> int:
     """How many of the ``n`` states the linear base has (:func:`linear_guess`): all, unless effects add their own."""
     base = physics.linear_base() if hasattr(physics, "linear_base") else None
@@ -294,7 +289,7 @@ class _NotConverged(Exception):
     """Newton did not converge within its sweeps: :func:`simulate_rk4` retries with longer segments."""
 
 
-class RK4Solution:
+class ShootingSolution:
     """A converged multiple-shooting solution: the layout, the starts, T, and the states of the last sweep."""
 
     def __init__(self, layout: _Layout, states: torch.Tensor, T: torch.Tensor | None, starts: torch.Tensor | None):
@@ -321,22 +316,21 @@ class RK4Solution:
         return self.layout.assemble(states + (self.T @ drift[:, :, None, :, None])[..., 0])
 
 
-def solve_rk4(
+def solve_shooting(
     physics,
     t: torch.Tensor,
     u: torch.Tensor,
     x0: torch.Tensor,
+    solver: FixedStep,
     *,
-    substeps: int | None = None,
-    segment: int = SEGMENT_STEPS,
     tol: float | None = None,
     max_sweeps: int = 16,
     sensitivities: bool = True,
     guess: torch.Tensor | None = None,
     warm: WarmStart | None = None,
     hold: str = "foh",
-) -> RK4Solution:
-    """Run Newton to convergence (arguments of :func:`simulate_rk4`), without recording gradients.
+) -> ShootingSolution:
+    """Run Newton to convergence (arguments of :func:`simulate_shooting`), without recording gradients.
 
     With ``sensitivities`` the last sweep is graded (central differences, T exact to ~1e-10); without, its
     T comes from forward differences. Either way the last update is applied linearly (:func:`_newton`).
@@ -349,38 +343,35 @@ def solve_rk4(
     ``hold``: ``"foh"`` or ``"zoh"`` (module docstring).
     """
     check_hold(hold)
-    substeps = getattr(physics, "substeps", 1) if substeps is None else substeps
-    if substeps < 1 or segment < 1:
-        raise ValueError(f"substeps and segment must be at least 1, got substeps={substeps}, segment={segment}")
+    if not isinstance(solver, FixedStep) or solver.substeps == "auto":
+        raise TypeError(f"the shooting engine needs RK4 or TRBDF2 with a whole number of substeps, got {solver!r}")
     tol = tol if tol is not None else GRADIENT_TOL if sensitivities else NEWTON_TOL
     if warm is not None and not isinstance(warm, WarmStart):
         raise TypeError(f"warm must be a torchpaml.WarmStart kept per record (warm=tp.WarmStart()), got "
                         f"{type(warm).__name__}")
     if warm is not None and warm.states is not None:
         guess = warm.states
-    guess = guess if guess is not None else linear_guess(physics, t, u, x0[..., :_linear_states(physics, x0.shape[-1])], hold)
-    if guess is not None and guess.shape[-1] < x0.shape[-1]:  # the base's states: effect states start held at x0
-        held = x0[:, None, guess.shape[-1]:].expand(-1, guess.shape[1], -1)
-        guess = torch.cat([guess, held.to(guess)], dim=-1)
-    length = segment
+    guess = base_guess(physics, t, u, x0, hold) if guess is None else _completed(guess, x0)
+    length = solver.segment
     while True:
-        layout = _Layout(t, u, length, substeps, hold)
+        layout = _Layout(t, u, solver, length, hold)
         try:
             with torch.no_grad():
                 states, T, starts = _newton(physics, layout, x0.detach(), tol, max_sweeps, sensitivities,
                                             guess)
             # constants of the solution: no_grad stops reverse mode, detach also stops forward mode's tangents
-            solution = RK4Solution(layout, states.detach(), T, None if starts is None else starts.detach())
+            solution = ShootingSolution(layout, states.detach(), T, None if starts is None else starts.detach())
             if warm is not None:
                 warm.states = solution.trajectory
             return solution
         except _NotConverged:
-            length *= GROWTH  # fewer, longer segments; one segment is plain sequential RK4, which always ends
+            length *= GROWTH  # fewer, longer segments; one segment is plain sequential stepping, which always ends
 
 
-def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, warm: WarmStart | None = None,
-                 **options) -> torch.Tensor:
-    r"""States of ``physics`` on the sample grid by RK4, parallel in time (module docstring).
+def simulate_shooting(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: FixedStep,
+                      warm: WarmStart | None = None, **options) -> torch.Tensor:
+    r"""States of ``physics`` on the sample grid by ``solver`` (RK4 or TRBDF2 at fixed substeps), parallel in
+    time (module docstring).
 
     Args:
         physics: an :class:`~torchpaml._physics.AbstractPhysics`; ``derivative(t, x, u)`` is called with
@@ -388,15 +379,15 @@ def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, wa
         t: sample times, (time,), strictly increasing (uniform or not).
         u: input samples, (batch, time, n_input).
         x0: initial state, (batch, n_state).
+        solver: a :class:`~torchpaml._simulate.solvers.FixedStep` with whole ``substeps``; its ``segment`` is
+            the steps per shooting segment L.
         warm: a :class:`~torchpaml._simulate.warm.WarmStart` the caller keeps between solves of the same record
             under nearby parameters (the steps of a training run): the converged states are stored in it and
             start the next solve's Newton, which then needs fewer sweeps.
-        options: ``substeps`` (RK4 steps per sample interval, default the model's ``substeps``), ``segment`` (steps per
-            shooting segment L, default :data:`SEGMENT_STEPS`), ``tol`` (Newton stops when every
-            continuity defect is below ``tol`` times the state's scale; default :data:`NEWTON_TOL`, or
-            :data:`GRADIENT_TOL` when grad mode is on), ``max_sweeps`` (sweeps before
-            Newton gives up and the segments are made :data:`GROWTH` times longer, for chaotic or very
-            stiff records; in the limit one segment, plain sequential RK4), ``hold`` (``"foh"``, the input
+        options: ``tol`` (Newton stops when every continuity defect is below ``tol`` times the state's scale;
+            default :data:`NEWTON_TOL`, or :data:`GRADIENT_TOL` when grad mode is on), ``max_sweeps`` (sweeps
+            before Newton gives up and the segments are made :data:`GROWTH` times longer, for chaotic or very
+            stiff records; in the limit one segment, plain sequential stepping), ``hold`` (``"foh"``, the input
             linear between samples, or ``"zoh"``, held constant).
 
     Returns:
@@ -405,5 +396,5 @@ def simulate_rk4(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, wa
     """
     if len(t) < 2:
         return x0[:, None]
-    solution = solve_rk4(physics, t, u, x0, sensitivities=torch.is_grad_enabled(), warm=warm, **options)
+    solution = solve_shooting(physics, t, u, x0, solver, sensitivities=torch.is_grad_enabled(), warm=warm, **options)
     return solution.states(physics, x0)

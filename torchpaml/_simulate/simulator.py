@@ -1,27 +1,21 @@
-"""One entry point that simulates any physics: exact for linear physics, RK4 to a tolerance otherwise, or torchdiffeq."""
+"""One entry point that simulates any physics, by the solver passed in (:mod:`~torchpaml._simulate.solvers`)."""
 
 from __future__ import annotations
 
-from typing import Literal
-
 import torch
 
-from torchpaml._errors import DataError, SimulationError
+from torchpaml._errors import DataError, ResolutionError, SimulationError
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._grid import check_hold, uniform_step
 from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.ode import simulate_ode
+from torchpaml._simulate.shooting import base_guess, simulate_shooting
+from torchpaml._simulate.solvers import RK4, TRBDF2, Auto, Dopri5, Exact, FixedStep, Solver
+from torchpaml._simulate.step_control import MAX_SUBSTEPS, simulate_to_tolerance
+from torchpaml._simulate.stiffness import STIFF_SUBSTEPS, stable_substeps, stiffness
 from torchpaml._simulate.warm import WarmStart
-from torchpaml._simulate.shooting import SEGMENT_STEPS, simulate_rk4
-from torchpaml._simulate.step_control import simulate_to_tolerance
 
-__all__ = ["ADAPTIVE_RTOL", "RK4_RTOL", "checked_output", "simulate"]
-
-#: Default ``rtol`` of RK4's step doubling: the output's relative error, as scipy's ``solve_ivp`` defaults to
-#: (the gap bounds the error of the returned, finer output; measured 15 to 20 times smaller on smooth physics).
-RK4_RTOL = 1e-3
-#: Default ``rtol`` of torchdiffeq's adaptive solvers (per step).
-ADAPTIVE_RTOL = 1e-7
+__all__ = ["checked_output", "simulate"]
 
 
 def simulate(
@@ -30,17 +24,11 @@ def simulate(
     u: torch.Tensor,
     x0: torch.Tensor | None = None,
     *,
-    method: str = "auto",
-    rtol: float | None = None,
-    atol: float = 1e-9,
-    adjoint: bool = False,
-    max_num_steps: int = 1_000_000,
-    knots: torch.Tensor | None = None,
-    substeps: int | Literal["auto"] = "auto",
-    segment: int = SEGMENT_STEPS,
-    blowup: float = 1e8,
+    solver: Solver | None = None,
     warm: WarmStart | None = None,
     hold: str = "foh",
+    knots: torch.Tensor | None = None,
+    blowup: float = 1e8,
 ) -> torch.Tensor:
     r"""Simulate $y = \mathcal H^\theta[u]$ for the input through the samples, held as ``hold`` says.
 
@@ -50,66 +38,93 @@ def simulate(
         u: input samples, shape (batch, time, n_input), float64.
         x0: initial state (batch, n_state), or of the base's states only (``physics + effect``: the effects' own
             states then start at their declared values, :func:`~torchpaml._physics.complete_state`); rest if omitted.
-        method: ``"auto"`` (exact for linear physics on a uniform grid, else ``"rk4"``), ``"exact"``,
-            ``"rk4"`` (fixed-step RK4 on the sample grid, parallel in time:
-            :func:`~torchpaml._simulate.shooting.simulate_rk4`), or any other torchdiffeq method name
-            (``"dopri5"``: adaptive, with error control).
-        rtol: relative tolerance. RK4 with ``substeps="auto"``: of the whole output, by step doubling (default
-            :data:`RK4_RTOL`); an adaptive torchdiffeq solver: of each step (default :data:`ADAPTIVE_RTOL`).
-        atol: absolute tolerance of an adaptive torchdiffeq solver.
-        adjoint: differentiate a torchdiffeq solve by the adjoint method.
-        max_num_steps: step limit of an adaptive torchdiffeq solver.
-        substeps: RK4 steps per sample interval (``"rk4"``). ``"auto"`` (default): from the model's
-            ``substeps`` (1, or what :func:`~torchpaml._fit.fit_physics` resolved), doubled until halving the
-            step moves the output by at most ``rtol`` of its size, and the output at the finer step returned
-            (:func:`~torchpaml._simulate.step_control.simulate_to_tolerance`); raises
-            :class:`~torchpaml._errors.ResolutionError` when that takes more than 64. A number: that many,
-            unchecked. Calling the model, ``physics(t, u)``, simulates at its own ``substeps``.
-        segment: RK4 steps per shooting segment (``"rk4"``).
-        knots: times where the input's slope jumps, stepped on by adaptive solvers (see
-            :func:`~torchpaml._simulate.ode.simulate_ode`); the exact path needs none.
-        blowup: an output beyond this magnitude raises :class:`SimulationError`.
+        solver: how to integrate (:mod:`~torchpaml._simulate.solvers`): :class:`~torchpaml.Auto` (the default:
+            exact for linear physics on a uniform grid, else RK4 to ``rtol``, else, for stiff physics, TR-BDF2),
+            :class:`~torchpaml.Exact`, :class:`~torchpaml.RK4`, :class:`~torchpaml.TRBDF2` or
+            :class:`~torchpaml.Dopri5`. A fixed-step solver with ``substeps="auto"`` doubles its substeps until
+            halving the step moves the output by at most ``rtol`` of its size
+            (:func:`~torchpaml._simulate.step_control.simulate_to_tolerance`), and raises
+            :class:`~torchpaml._errors.ResolutionError` when that takes more than 64. Calling the model,
+            ``physics(t, u)``, simulates with its own ``physics.solver`` (the one its fit resolved).
         warm: a :class:`~torchpaml.WarmStart` kept by the caller between simulations of the same record
-            (``"rk4"``): Newton starts from the states the previous one stored there. The result does not
+            (RK4, TR-BDF2): Newton starts from the states the previous one stored there. The result does not
             depend on it.
         hold: ``"foh"`` (the input linear between samples) or ``"zoh"`` (held constant until the next
-            sample); the exact path and ``"rk4"`` take either, torchdiffeq's solvers ``"foh"`` only.
+            sample); the exact path and the fixed-step solvers take either, ``Dopri5`` ``"foh"`` only.
+        knots: times where the input's slope jumps, stepped on by ``Dopri5`` (see
+            :func:`~torchpaml._simulate.ode.simulate_ode`).
+        blowup: an output beyond this magnitude raises :class:`SimulationError`.
 
     Returns:
         y: shape (batch, time, n_output). Differentiable in the physical parameters and ``u``.
     """
     if u.dim() != 3 or u.shape[1] != t.shape[-1]:
         raise DataError(f"u must have shape (batch, time={t.shape[-1]}, channel), got {tuple(u.shape)}")
+    if isinstance(x0, Solver):
+        raise TypeError(f"simulate's fourth argument is the initial state; pass the solver by name: solver={x0!r}")
+    solver = Auto() if solver is None else solver
+    if not isinstance(solver, Solver):
+        raise TypeError(f"solver must be one of torchpaml's solvers (Auto(), Exact(), RK4(), TRBDF2(), Dopri5()), "
+                        f"got {solver!r}")
     x0 = complete_state(physics, x0, u.shape[0]).to(u)
-    if check_hold(hold) == "zoh" and method not in ("auto", "exact", "rk4"):
-        raise ValueError(f"hold='zoh' is simulated by the exact path and by 'rk4', not by {method!r}, whose "
-                         "interpolant is first-order; use method='rk4' (with substeps=) or 'auto'")
-    if method == "exact":
+    if check_hold(hold) == "zoh" and isinstance(solver, Dopri5):
+        raise ValueError("hold='zoh' is simulated by the exact path and by the fixed-step solvers, not by Dopri5, "
+                         "whose interpolant is first-order; use solver=RK4() or the default")
+    if isinstance(solver, Exact):
         if physics.state_space() is None:
-            raise ValueError(f"method='exact' needs linear physics; {type(physics).__name__} is nonlinear. Use 'rk4'")
+            raise ValueError(f"solver=Exact() needs linear physics; {type(physics).__name__} is nonlinear. Use RK4()")
         h = uniform_step(t)  # raises, naming the spacing, on a non-uniform grid
     else:
-        h = exact_step(physics, t) if method == "auto" else None
+        h = exact_step(physics, t) if isinstance(solver, Auto) else None
     if h is not None:
         return checked_output(simulate_lti(*physics.state_space(), h, u, x0, hold), t, blowup)
-    if method in ("auto", "rk4"):
-        def run(m: int) -> torch.Tensor:
-            states = simulate_rk4(physics, t, u, x0, warm, substeps=m, segment=segment, hold=hold)
-            return checked_output(physics.output(states, u), t, blowup)
+    if isinstance(solver, Dopri5):
+        states = simulate_ode(physics, t, u, x0, method="dopri5", rtol=solver.rtol, atol=solver.atol,
+                              adjoint=solver.adjoint, max_num_steps=solver.max_num_steps, knots=knots)
+        return checked_output(physics.output(states, u), t, blowup)
+    if isinstance(solver, FixedStep):
+        return _fixed_step(physics, t, u, x0, solver, warm, hold, blowup)
+    try:
+        return _fixed_step(physics, t, u, x0, RK4(rtol=solver.rtol), warm, hold, blowup, STIFF_SUBSTEPS)
+    except (ResolutionError, SimulationError) as explicit:  # too stiff for RK4's step: the implicit method
+        try:
+            return _fixed_step(physics, t, u, x0, TRBDF2(rtol=solver.rtol), WarmStart(), hold, blowup)
+        except (ResolutionError, SimulationError):
+            raise explicit from None
 
-        if substeps != "auto":
-            if isinstance(substeps, bool) or not isinstance(substeps, int) or substeps < 1:
-                raise ValueError(f"substeps must be 'auto' (RK4 to rtol) or a whole number of RK4 steps per sample "
-                                 f"interval, at least 1; got {substeps!r}")
-            return run(substeps)
-        warm = WarmStart() if warm is None else warm  # the accepted step's solve starts the differentiable one
-        step = float((t[-1] - t[0]) / max(len(t) - 1, 1))
-        return simulate_to_tolerance(run, physics.substeps, RK4_RTOL if rtol is None else rtol, step)[0]
-    states = simulate_ode(
-        physics, t, u, x0, method=method, rtol=ADAPTIVE_RTOL if rtol is None else rtol, atol=atol, adjoint=adjoint, max_num_steps=max_num_steps,
-        knots=knots,
-    )
-    return checked_output(physics.output(states, u), t, blowup)
+
+def _fixed_step(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: FixedStep,
+                warm: WarmStart | None, hold: str, blowup: float, most_stable: int = MAX_SUBSTEPS) -> torch.Tensor:
+    """The output by ``solver`` at its substeps, or to its ``rtol`` (``substeps="auto"``): step doubling from the
+    model's own substeps where the model's solver is the same method, at substeps where the step is stable
+    along the accepted trajectory (:mod:`~torchpaml._simulate.stiffness`; beyond ``most_stable`` substeps it raises
+    :class:`~torchpaml._errors.ResolutionError`)."""
+    trajectories: dict[int, torch.Tensor] = {}
+
+    def run(m: int) -> torch.Tensor:
+        states = simulate_shooting(physics, t, u, x0, solver.at(m), warm, hold=hold)
+        if not trajectories:  # the first trajectory: stiff physics is told before the step doubling climbs
+            stable_substeps(solver.at(1), stiffness(physics, t, u, states.detach()), most_stable)
+        trajectories.clear()
+        trajectories[m] = states.detach()
+        return checked_output(physics.output(states, u), t, blowup)
+
+    if solver.substeps != "auto":
+        return run(solver.substeps)
+    warm = WarmStart() if warm is None else warm  # the accepted step's solve starts the differentiable one
+    own = physics.solver
+    start = own.substeps if type(own) is type(solver) and own.substeps != "auto" else 1
+    with torch.no_grad():
+        guess = base_guess(physics, t, u, x0.detach(), hold)  # the linear base's exact trajectory, where there is one
+    if guess is not None:  # tells stiff physics, and starts where the step is stable, before any unstable run
+        start = max(start, stable_substeps(solver.at(1), stiffness(physics, t, u, guess), most_stable))
+    step = float((t[-1] - t[0]) / max(len(t) - 1, 1))
+    while True:
+        y, m = simulate_to_tolerance(run, start, solver.rtol, step, solver.order, type(solver).__name__)
+        stable = stable_substeps(solver.at(1), stiffness(physics, t, u, trajectories[m]), most_stable)
+        if stable <= m:
+            return y
+        start = stable
 
 
 def checked_output(y: torch.Tensor, t: torch.Tensor, blowup: float = 1e8) -> torch.Tensor:

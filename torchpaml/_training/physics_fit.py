@@ -10,6 +10,7 @@ from torchpaml._fit import fit_physics
 from torchpaml._metrics import mismatch
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._training.system import HybridSystem, scored
+from torchpaml._simulate.solvers import Solver
 
 __all__ = ["PhysicsFit"]
 
@@ -29,7 +30,7 @@ class PhysicsFit(HybridSystem):
         optimizer: unused (``fit_physics`` is the optimiser); accepted so that every system's config has the same keys.
         lr: unused, as ``optimizer``.
         lr_decay: unused, as ``optimizer``.
-        simulation: unused, as ``optimizer``.
+        solver: unused, as ``optimizer`` (``fit_physics`` resolves its own).
         max_iter: trust-region iterations of one training step.
 
     The checkpoint carries ``physical_parameters`` (values in physical units), which
@@ -46,10 +47,10 @@ class PhysicsFit(HybridSystem):
         lr: float = 1.0,
         max_iter: int = 20,
         lr_decay: float = 1.0,
-        simulation: dict | None = None,
+        solver: Solver | None = None,
     ):
         super().__init__(
-            optimizer=optimizer, lr=lr, max_iter=max_iter, simulation=simulation, lr_decay=lr_decay,
+            optimizer=optimizer, lr=lr, max_iter=max_iter, solver=solver, lr_decay=lr_decay,
             witness_amplitude=None, witness_omega=1.0, witness_duration=80.0,
         )
         self.save_hyperparameters(ignore=["physics"])

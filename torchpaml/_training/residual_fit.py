@@ -15,6 +15,7 @@ from torchpaml._metrics import mismatch
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
 from torchpaml._training.system import HybridSystem
+from torchpaml._simulate.solvers import Solver
 
 __all__ = ["ResidualFit", "default_optimizer"]
 
@@ -61,14 +62,14 @@ class ResidualFit(HybridSystem):
         lr: float | None = None,
         max_iter: int = 20,
         lr_decay: float = 1.0,
-        simulation: dict | None = None,
+        solver: Solver | None = None,
         witness_amplitude: float | None = None,
         witness_omega: float = 1.0,
         witness_duration: float = 80.0,
     ):
         optimizer, lr = default_optimizer(residual, optimizer, lr)
         super().__init__(
-            optimizer=optimizer, lr=lr, max_iter=max_iter, simulation=simulation, lr_decay=lr_decay,
+            optimizer=optimizer, lr=lr, max_iter=max_iter, solver=solver, lr_decay=lr_decay,
             witness_amplitude=witness_amplitude, witness_omega=witness_omega, witness_duration=witness_duration,
         )
         self.save_hyperparameters(ignore=["physics", "residual"])

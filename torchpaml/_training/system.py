@@ -28,6 +28,7 @@ from torchpaml._render.figures import dominant_frequency, overlay_figure, residu
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
 from torchpaml._residual.hybrid import Hybrid
 from torchpaml._simulate.warm import WarmStart
+from torchpaml._simulate.solvers import Solver
 
 __all__ = ["HybridSystem"]
 
@@ -50,7 +51,9 @@ class HybridSystem(L.LightningModule):
         lr_decay: Adam's learning rate is multiplied by this factor after every epoch
             (``torch.optim.lr_scheduler.ExponentialLR``; 1 keeps it constant). A decay lets Adam settle
             instead of spiking late in training; being per epoch, it resumes exactly from a checkpoint.
-        simulation: options for :func:`~torchpaml.simulate` (``method``, ``rtol``, ``atol``...).
+        solver: the solver of a learned force's model (the physics inside the ODE with an :class:`MLPForce`,
+            :mod:`~torchpaml._simulate.solvers`); default the physics' own, the one stage 1 resolved. The physics
+            alone always simulates with its own.
         witness_amplitude: $\alpha$ of the certificates' witness input $\alpha\cos\omega t$; default the
             Chebyshev residual's $\alpha$, else max|u| of the training data.
         witness_omega: $\omega$ of the witness input, rad/s.
@@ -65,7 +68,7 @@ class HybridSystem(L.LightningModule):
         optimizer: str,
         lr: float,
         max_iter: int,
-        simulation: dict | None,
+        solver: Solver | None,
         lr_decay: float,
         witness_amplitude: float | None,
         witness_omega: float,
@@ -77,7 +80,7 @@ class HybridSystem(L.LightningModule):
         if not 0 < lr_decay <= 1:
             raise ValueError(f"lr_decay must lie in (0, 1], got {lr_decay}")
         self.optimizer_name, self.lr, self.max_iter, self.lr_decay = optimizer, float(lr), int(max_iter), lr_decay
-        self.simulation = dict(simulation or {})
+        self.solver = solver
         self.witness = (witness_amplitude, float(witness_omega), float(witness_duration))
         self.physics: nn.Module
         self.residual: nn.Module | None = None
@@ -108,9 +111,9 @@ class HybridSystem(L.LightningModule):
         ``warm``: a nonlinear model's Newton warm start (:func:`~torchpaml.simulate`), see :meth:`warm_start`.
         """
         if self.residual is None:
-            y = self.physics(t, u, warm=warm, **self.simulation)
+            y = self.physics(t, u, warm=warm)
             return y, y
-        return Hybrid(self.physics, self.residual)(t, u, warm=warm, **self.simulation)
+        return Hybrid(self.physics, self.residual)(t, u, warm=warm, solver=self.solver)
 
     def warm_start(self, split: str, batch_idx: int) -> WarmStart:
         """The warm start of one batch of ``split``: every epoch simulates the same batches (the loaders do not
@@ -132,7 +135,7 @@ class HybridSystem(L.LightningModule):
         samples (:func:`~torchpaml._fit.residual_fit.project`); sets the residual's coefficients to $c$.
         """
         t, u, y = batch["t"], batch["u"], batch["y"]
-        y_physics = self.physics(t, u, **self.simulation)
+        y_physics = self.physics(t, u)
         regressors = scored(batch, self.residual.regressors(t, u))
         coefficients, fitted = project(regressors, scored(batch, y - y_physics)[..., 0])
         self.residual.set_coefficients(coefficients.detach())
@@ -268,7 +271,7 @@ class HybridSystem(L.LightningModule):
         hybrid = Hybrid(self.physics, self.residual)
 
         def fitted_residual(generator):
-            return lambda t, u, y: hybrid(t, u, **self.simulation)[1] - y
+            return lambda t, u, y: hybrid(t, u, solver=self.solver)[1] - y
 
         scalars = {}
         for name in self.identified_names:
