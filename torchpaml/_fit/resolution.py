@@ -40,6 +40,8 @@ __all__ = ["MAX_SUBSTEPS", "STEP_FLOOR", "STEP_TOLERANCE", "resolved_solver", "s
 
 STEP_TOLERANCE = 0.1
 STEP_FLOOR = 1e-6
+#: Samples per step of the stability probe's TR-BDF2 trajectory.
+PROBE_STRIDE = 16
 
 
 def step_gap(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None]
@@ -57,14 +59,18 @@ def step_gap(physics, solver: FixedStep, records: Sequence[Experiment], states: 
     return 0.0 if norm == 0.0 else math.sqrt(squared / norm)
 
 
-def _probe(physics, record: Experiment, x0: torch.Tensor | None, solver: FixedStep) -> torch.Tensor:
-    """The trajectory whose rates judge an explicit step's stability: the L-stable TR-BDF2's at one substep, which
-    follows the physics into a stiff region that an unstable explicit step can leave unseen; ``solver``'s own
-    where TR-BDF2's Newton does not converge (a corner it cannot resolve at that step)."""
+def _stiffness(physics, record: Experiment, x0: torch.Tensor | None, solver: FixedStep) -> float:
+    r"""$\sigma$ of ``record`` (:func:`~torchpaml._simulate.stiffness.stiffness`) along the trajectory that the
+    L-stable TR-BDF2 draws at one step per :data:`PROBE_STRIDE` samples: it follows the physics into a stiff region
+    that an unstable explicit step can leave unseen, at a fraction of a simulation's cost; along ``solver``'s own
+    trajectory where TR-BDF2's Newton does not converge (a corner it cannot resolve at that step)."""
+    coarse = Experiment(record.t[::PROBE_STRIDE], record.u[::PROBE_STRIDE], record.y[::PROBE_STRIDE], record.name,
+                        hold=record.hold)
     try:
-        return record_states(physics, record, x0, TRBDF2(substeps=1))
+        states, probe, stride = record_states(physics, coarse, x0, TRBDF2(substeps=1)), coarse, PROBE_STRIDE
     except SimulationError:
-        return record_states(physics, record, x0, solver)
+        states, probe, stride = record_states(physics, record, x0, solver), record, 1
+    return stiffness(physics, probe.t - probe.t[0], probe.u[None], states[None]) / stride
 
 
 def resolved_solver(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None],
@@ -76,8 +82,8 @@ def resolved_solver(physics, solver: FixedStep, records: Sequence[Experiment], s
     where stability alone needs more than ``most_stable``."""
     m = solver.substeps
     if isinstance(solver, RK4):  # explicit: its step must be stable along the trajectory
-        sigma = max((stiffness(physics, r.t - r.t[0], r.u[None], _probe(physics, r, x0, solver)[None])
-                     for r, x0 in zip(records, states, strict=True) if exact_step(physics, r.t) is None), default=0.0)
+        sigma = max((_stiffness(physics, r, x0, solver) for r, x0 in zip(records, states, strict=True)
+                     if exact_step(physics, r.t) is None), default=0.0)
         stable = stable_substeps(solver, sigma, most_stable)
         if stable != m:  # the step doubling cannot judge an unstable step
             return solver.at(stable)
