@@ -5,8 +5,9 @@ import torch
 from scipy.integrate import solve_ivp
 
 
-def oracle(physics, t, u):
-    """The output (1, time, 1) by DOP853 at rtol 1e-12, interval by interval, the input linear in each."""
+def oracle(physics, t, u, method: str = "DOP853"):
+    """The output (1, time, 1) by scipy's ``method`` (DOP853; Radau for stiff physics) at rtol 1e-12, interval by
+    interval, the input linear in each."""
     x = physics.initial_state(1)[0].numpy()
     states = [x]
     for k in range(len(t) - 1):
@@ -17,7 +18,7 @@ def oracle(physics, t, u):
             with torch.no_grad():
                 return physics.derivative(torch.tensor([time]), torch.tensor(state)[None], drive)[0].numpy()
 
-        x = solve_ivp(rate, (t0, t1), x, method="DOP853", rtol=1e-12, atol=1e-14).y[:, -1]
+        x = solve_ivp(rate, (t0, t1), x, method=method, rtol=1e-12, atol=1e-14).y[:, -1]
         states.append(x)
     with torch.no_grad():
         return physics.output(torch.tensor(np.array(states))[None], u)

@@ -7,10 +7,8 @@ stiff tank's TR-BDF2 output to 1e-3 of the output against scipy's Radau at rtol 
 relative; fitted parameters of the two solvers within 0.5 standard errors of each other.
 """
 
-import numpy as np
 import pytest
 import torch
-from scipy.integrate import solve_ivp
 
 import torchpaml as tp
 from torchpaml import RK4, TRBDF2, ResolutionError, simulate
@@ -40,24 +38,6 @@ class SpillingTank(tp.AbstractPhysics):
         return x[..., :1]
 
 
-def radau(physics, t, u):
-    """The output (1, time, 1) by scipy's Radau at rtol 1e-12, interval by interval, the input linear in each."""
-    x, states = physics.initial_state(1)[0].numpy(), []
-    states.append(x)
-    for k in range(len(t) - 1):
-        t0, t1, u0, u1 = float(t[k]), float(t[k + 1]), float(u[0, k, 0]), float(u[0, k + 1, 0])
-
-        def rate(time, state, t0=t0, t1=t1, u0=u0, u1=u1):
-            drive = torch.tensor([[u0 + (time - t0) * (u1 - u0) / (t1 - t0)]], dtype=torch.float64)
-            with torch.no_grad():
-                return physics.derivative(torch.tensor([time]), torch.tensor(state)[None], drive)[0].numpy()
-
-        x = solve_ivp(rate, (t0, t1), x, method="Radau", rtol=1e-12, atol=1e-14).y[:, -1]
-        states.append(x)
-    with torch.no_grad():
-        return physics.output(torch.tensor(np.array(states))[None], u)
-
-
 @pytest.fixture(scope="module")
 def pump():
     """(t, u): 200 s sampled every second, the pump's voltage a slow multisine around 0.8 V."""
@@ -83,7 +63,7 @@ def test_trbdf2_is_second_order_on_a_smooth_nonlinear_model():
 def test_a_stiff_spill_is_integrated_at_one_step_per_sample_where_rk4_is_unstable(pump):
     t, u = pump
     tank = SpillingTank(c=500.0)  # c times the sample interval: 500
-    reference = radau(tank, t, u)
+    reference = oracle(tank, t, u, method="Radau")
     assert float((reference > 1.0).double().mean()) > 0.5  # the level spends most of the record above the rim
     with torch.no_grad():
         implicit = simulate(tank, t, u, solver=TRBDF2(substeps=1))
@@ -123,7 +103,7 @@ def test_gradients_of_a_stiff_simulation_match_central_differences():
 
 
 def noisy_record(truth, t, u):
-    y = radau(truth, t, u)
+    y = oracle(truth, t, u, method="Radau")
     noise = 0.01 * float(y.std()) * torch.randn(y.shape, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
     return tp.Experiment(t, u[0], (y + noise)[0])
 
