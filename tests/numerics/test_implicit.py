@@ -40,8 +40,8 @@ class SpillingTank(tp.AbstractPhysics):
 
 @pytest.fixture(scope="module")
 def pump():
-    """(t, u): 200 s sampled every second, the pump's voltage a slow multisine around 0.8 V."""
-    t = tp.time_grid(200.0, 1.0)
+    """(t, u): 120 s sampled every second, the pump's voltage a slow multisine around 0.8 V."""
+    t = tp.time_grid(120.0, 1.0)
     return t, 0.8 + 0.6 * tp.multisine(t, 1.0, [0.005, 0.01, 0.02, 0.04], seed=0)
 
 
