@@ -96,32 +96,41 @@ def simulate(
 def _fixed_step(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: FixedStep,
                 warm: WarmStart | None, hold: str, blowup: float, most_stable: int = MAX_SUBSTEPS) -> torch.Tensor:
     """The output by ``solver`` at its substeps, or to its ``rtol`` (``substeps="auto"``): step doubling from the
-    model's own substeps where the model's solver is the same method, at substeps where the step is stable
-    along the accepted trajectory (:mod:`~torchpaml._simulate.stiffness`; beyond ``most_stable`` substeps it raises
-    :class:`~torchpaml._errors.ResolutionError`)."""
-    trajectories: dict[int, torch.Tensor] = {}
+    model's own substeps where the model's solver is the same method.
 
-    def run(m: int) -> torch.Tensor:
-        states = simulate_shooting(physics, t, u, x0, solver.at(m), warm, hold=hold)
-        if not trajectories:  # the first trajectory: stiff physics is told before the step doubling climbs
-            stable_substeps(solver.at(1), stiffness(physics, t, u, states.detach()), most_stable)
-        trajectories.clear()
-        trajectories[m] = states.detach()
-        return checked_output(physics.output(states, u), t, blowup)
+    The step's stability (:mod:`~torchpaml._simulate.stiffness`; beyond ``most_stable`` substeps it raises
+    :class:`~torchpaml._errors.ResolutionError`) is judged on a first trajectory, before the step doubling climbs
+    (the linear base's exact one where there is one, which also sets where the doubling starts; else the first
+    simulated), and on the accepted one (an unstable step can leave a stiff region that the first trajectory
+    entered only briefly); a fixed step, on its own trajectory."""
+    def judged(states: torch.Tensor) -> int:
+        return stable_substeps(solver.at(1), stiffness(physics, t, u, states.detach()), most_stable)
 
     if solver.substeps != "auto":
-        return run(solver.substeps)
+        states = simulate_shooting(physics, t, u, x0, solver, warm, hold=hold)
+        judged(states)  # refuses physics too stiff for the method
+        return checked_output(physics.output(states, u), t, blowup)
     warm = WarmStart() if warm is None else warm  # the accepted step's solve starts the differentiable one
     own = physics.solver
     start = own.substeps if type(own) is type(solver) and own.substeps != "auto" else 1
     with torch.no_grad():
         guess = base_guess(physics, t, u, x0.detach(), hold)  # the linear base's exact trajectory, where there is one
-    if guess is not None:  # tells stiff physics, and starts where the step is stable, before any unstable run
-        start = max(start, stable_substeps(solver.at(1), stiffness(physics, t, u, guess), most_stable))
+    if guess is not None:
+        start = max(start, judged(guess))
+    trajectories: dict[int, torch.Tensor] = {}
+
+    def run(m: int) -> torch.Tensor:
+        states = simulate_shooting(physics, t, u, x0, solver.at(m), warm, hold=hold)
+        if not trajectories and guess is None:
+            judged(states)
+        trajectories.clear()
+        trajectories[m] = states.detach()
+        return checked_output(physics.output(states, u), t, blowup)
+
     step = float((t[-1] - t[0]) / max(len(t) - 1, 1))
     while True:
         y, m = simulate_to_tolerance(run, start, solver.rtol, step, solver.order, type(solver).__name__)
-        stable = stable_substeps(solver.at(1), stiffness(physics, t, u, trajectories[m]), most_stable)
+        stable = judged(trajectories[m])
         if stable <= m:
             return y
         start = stable
