@@ -10,11 +10,12 @@ per solve, and its step coefficients.
 Newton's method, the Jacobian $\partial f/\partial x$ by reverse mode (one backward pass per state), until
 the update is below :data:`NEWTON_TOL` of the state's scale. In a sweep that records gradients the converged $z^*$ is corrected once more,
 
-$$ z = z^* - M^{-1}\bigl(z^* - a - d\,h\,f(t_z, z^*)\bigr), \qquad M = I - d\,h\,\partial f/\partial x \big|_{z^*}
+$$ z = z^* - M^{-1}\bigl(z^* - a - d\,h\,f(t_z, z^*)\bigr), \qquad M = I - d\,h\,\partial f/\partial x
    \ \text{(held constant)}, $$
 
-whose value is $z^*$ and whose derivative in the parameters and in $a$ is the implicit function
-theorem's, $M^{-1}(\partial a + d\,h\,\partial f/\partial\theta)$: exact gradients, reverse and forward mode.
+$M$ the last Newton iteration's (its point within :data:`NEWTON_TOL` of $z^*$), whose value is $z^*$ and whose
+derivative in the parameters and in $a$ is the implicit function theorem's,
+$M^{-1}(\partial a + d\,h\,\partial f/\partial\theta)$: exact gradients by reverse mode.
 """
 
 from __future__ import annotations
@@ -95,7 +96,8 @@ def _stage(f, t: torch.Tensor, u: torch.Tensor, a: torch.Tensor, dh: torch.Tenso
         for _ in range(MAX_ITERATIONS):
             rates, J = rate_and_jacobian(f, t, z, u)
             g, size = residual(z, rates)
-            update = torch.linalg.solve(eye - dh[..., None] * J, g)
+            M = eye - dh[..., None] * J
+            update = torch.linalg.solve(M, g)
             step = torch.ones_like(size)
             for _ in range(HALVINGS):
                 trial = z - step[:, None] * update
@@ -114,8 +116,8 @@ def _stage(f, t: torch.Tensor, u: torch.Tensor, a: torch.Tensor, dh: torch.Tenso
                 f"update {change:.3g} of the state's scale): the physics is not smooth enough there, or blows up")
     if not tracked:
         return z
-    _, J = rate_and_jacobian(f, t, z, u)
-    return z - torch.linalg.solve(eye - dh[..., None] * J, z - a - dh * f(t, z, u))
+    # M of the last iteration: its point is within NEWTON_TOL of z
+    return z - torch.linalg.solve(M, z - a - dh * f(t, z, u))
 
 
 def _trbdf2(physics, x: torch.Tensor, stages, substeps: int) -> list[torch.Tensor]:
