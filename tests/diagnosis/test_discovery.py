@@ -21,6 +21,7 @@ from torchpaml import (
     Positive,
     Real,
     SecondOrderPhysics,
+    SparseRegression,
     Simulated,
     default_effects,
     diagnose,
@@ -64,6 +65,25 @@ def test_a_library_effect_is_deferred_to():
     assert not content["recommended"], content
     assert content["library_best"] == "coulomb_friction"
     assert content["nrmse_validation"]["library_best"] < 1.2 * floor
+
+
+class _Misled(SparseRegression):
+    """A sparse regression that proposes the term whose response fits the residual worst: a support that does not
+    hold when refitted, as first order proposes on a physics far from the truth."""
+
+    def select(self, A, measured, guides=()):
+        return [int((A.T @ measured).abs().argmin())]
+
+
+def test_a_first_order_support_that_does_not_hold_gives_way_to_the_best_refitted_single_term():
+    make, term, coefficient = forces.OUTSIDE["cubic_damping"]
+    train, validation, floor = run.records(run.truth(make()))
+    ranking = rank_missing_effects(run.physics(), default_effects(), train, validation, shortlist=2)
+    found = discover_missing_force(ranking, train, validation, regression=_Misled())
+    content = discovery_to_dict(found)
+    terms = dict((t["term"], t["coefficient"]) for t in content["terms"])
+    assert list(terms) == [term] and terms[term] == pytest.approx(coefficient, rel=0.1), content
+    assert content["nrmse_validation"]["discovered"] < 1.2 * floor, content
 
 
 def test_on_the_physics_alone_nothing_is_recommended():

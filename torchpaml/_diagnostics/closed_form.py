@@ -27,12 +27,13 @@ from torchpaml._data import Experiment
 from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, ModelScore, refit_effect, score_model
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._errors import SimulationError
+from torchpaml._fit import PhysicsEstimate
 from torchpaml._fit.uncertainty import IdentifiabilityWarning
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import compile_term, state_columns, width_symbol
 from torchpaml._simulate.records import record_states
 
-__all__ = ["refit_closed_form"]
+__all__ = ["fit_closed_form", "refit_closed_form"]
 
 #: A term of the refitted closed form whose contribution is below this share of the largest term's is dropped.
 PRUNE = 0.05
@@ -55,6 +56,27 @@ def _limit(term: str, width: str, variable: str, edge: str) -> str:
     return str(expression.subs(sign, sympy.Abs(s) / s if power >= 1 else sympy.sign(s)))
 
 
+def fit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[float],
+                    widths: dict[str, tuple[float, float]], train: Sequence[Experiment], max_nfev: int, initial_state: str
+                    ) -> tuple[torch.nn.Module, PhysicsEstimate] | None:
+    """``physics + DiscoveredForce(pairs)`` from ``coefficients`` (widths from twice their lower bound, bounded to
+    their ranges) fitted with the physics by output error, and its estimate; ``None`` where it blows up."""
+    terms = [t for _, t in pairs]
+    used = sorted({w for t in terms for w in compile_term(t, None).widths})
+    effect = DiscoveredForce(terms, coefficients, [e for e, _ in pairs], widths={w: 2 * widths[w][0] for w in used})
+    extended = copy.deepcopy(physics) + effect
+    for w in used:
+        extended.bound(f"discovered.{w}", *widths[w])
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", IdentifiabilityWarning)
+            estimate = refit_effect(extended, "discovered.gain", 1.0, train, max_nfev, initial_state,
+                                    ftol=REFIT_CRITERION_STEP / sum(r.y.numel() for r in train))
+    except SimulationError:
+        return None
+    return extended, estimate
+
+
 def refit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[float], widths: dict[str, tuple[float, float]],
            train: Sequence[Experiment], validation: Sequence[Experiment], rule: SelectionRule,
            max_nfev: int, initial_state: str, first_order: Callable[[list[tuple[str, str]]], list[float] | None]
@@ -66,21 +88,8 @@ def refit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[
     owner = {width_symbol(s): s for s in index}
 
     def refit(kept: list[tuple[str, str]], start: list[float]) -> ModelScore | None:
-        terms = [t for _, t in kept]
-        used = sorted({w for t in terms for w in compile_term(t, None).widths})
-        effect = DiscoveredForce(terms, start, [e for e, _ in kept],
-                                 widths={w: 2 * widths[w][0] for w in used})
-        extended = copy.deepcopy(physics) + effect
-        for w in used:
-            extended.bound(f"discovered.{w}", *widths[w])
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", IdentifiabilityWarning)
-                estimate = refit_effect(extended, "discovered.gain", 1.0, train, max_nfev, initial_state,
-                                        ftol=REFIT_CRITERION_STEP / sum(r.y.numel() for r in train))
-        except SimulationError:
-            return None
-        return score_model(extended, estimate, validation, rule, initial_state)
+        fitted = fit_closed_form(physics, kept, start, widths, train, max_nfev, initial_state)
+        return None if fitted is None else score_model(*fitted, validation, rule, initial_state)
 
     score = refit(pairs, coefficients)
     for _ in range(8):  # each pass removes or replaces at least one term, or stops

@@ -15,7 +15,10 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
    are compared by what they do to the output, where the records can tell them apart. The learned
    rate, seen the same way, guides the search. What the physics' own parameters (and, when they are
    estimated, the initial states) can produce, the columns of its output Jacobian, is projected out
-   (the first-order incompatibility of Kuang & Lin), and the sparse regression
+   (the first-order incompatibility of Kuang & Lin): the directions of the unit-scaled Jacobian that the
+   records determine, singular value at least $1/$:data:`~torchpaml._fit.uncertainty.COLLINEARITY_LIMIT`
+   (the identifiability check's limit; along a sloppier combination first order would move the
+   parameters far beyond where it holds). Then the sparse regression
    (:class:`~torchpaml._fit.sparse_regression.SparseRegression`: STLSQ and a forward path, scored by
    the extended BIC, which pays for the size of the search) picks the few terms that explain the
    measured residual $y - \hat y_{\text{physics}}$.
@@ -24,7 +27,11 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
    output error. A smoothed sign's width is bounded to what the record resolves (:func:`width_range`:
    from the typical change of $s$ over one sample to its RMS), and replaced by its limit at an edge
    (a sign, or a linear term); terms whose standard error exceeds their coefficient, and terms too
-   small to matter, are dropped, and the rest refitted.
+   small to matter, are dropped, and the rest refitted. Where that support does not hold (no term is
+   determined, or it does not beat the physics), first order was misled (a physics far from the
+   truth, as linear tanks whose outflow is a square root): every single term is fitted with the physics
+   by a few output-error iterations (:data:`SCREEN_NFEV`), the :data:`SCREEN` that fit best are refitted
+   in full, and the best by the criterion is kept.
 4. **Judge.** The closed form is scored on the validation records like every rung and
    **recommended** when it beats the physics by the ranking's rules and the best library effect's
    criterion by more than the threshold; otherwise the library effect, which has a name, is
@@ -41,11 +48,12 @@ from dataclasses import dataclass, field
 import torch
 
 from torchpaml._data import Experiment
-from torchpaml._diagnostics.closed_form import refit_closed_form
+from torchpaml._diagnostics.closed_form import fit_closed_form, refit_closed_form
 from torchpaml._diagnostics.ranking import EffectEvidence, ModelScore, Ranking, as_records
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
+from torchpaml._fit.uncertainty import COLLINEARITY_LIMIT
 from torchpaml._metrics import mismatch
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import TermLibrary, compile_term, state_columns, variables_of, width_symbol
@@ -60,6 +68,10 @@ log = logging.getLogger(__name__)
 DUPLICATE = 1e-9
 #: Relative central-difference step of the physics' own sensitivities.
 STEP = 1e-6
+#: Where the sparse regression's support does not hold when refitted (module docstring, step 3), every single term
+#: is fitted with the physics for at most SCREEN_NFEV evaluations, and the SCREEN that fit the training records best
+#: are refitted in full.
+SCREEN, SCREEN_NFEV = 4, 10
 
 
 @dataclass
@@ -227,7 +239,8 @@ def discover_missing_force(
     data = _columns(neural.model, physics, terms, equations, variables, train, baseline.train_states,
                     initial_state == "estimate")
     J = data.jacobian
-    Q = torch.linalg.qr(J / J.norm(dim=0).clamp_min(1e-300)).Q if J.shape[1] else J
+    U, S, _ = torch.linalg.svd(J / J.norm(dim=0).clamp_min(1e-300), full_matrices=False)
+    Q = U[:, S * COLLINEARITY_LIMIT >= 1]  # what the physics makes by moves the records determine
 
     def projected(M: torch.Tensor) -> torch.Tensor:
         return M - Q @ (Q.T @ M)
@@ -245,6 +258,7 @@ def discover_missing_force(
     if not chosen:
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
                          "the sparse regression kept no term: nothing is missing that the physics cannot make", samples)
+
     def first_order(kept: list[tuple[str, str]]) -> list[float] | None:
         """The coefficients of ``kept`` by least squares on the responses (with the physics' Jacobian), or ``None``
         where a term is not among the regressed ones (a limit replaced it)."""
@@ -253,16 +267,29 @@ def discover_missing_force(
         columns = torch.cat([J, data.responses[:, [pairs.index(p) for p in kept]]], dim=1)
         return torch.linalg.lstsq(columns, data.measured[:, None]).solution[J.shape[1]:, 0].tolist()
 
-    chosen_pairs = [pairs[i] for i in chosen]
-    log.info("discovery: refitting %s", ", ".join(f"{t} ({e})" for e, t in chosen_pairs))
-    discovered = refit_closed_form(physics, chosen_pairs, first_order(chosen_pairs), data.widths, train, validation, rule,
-                        max_nfev, initial_state, first_order)
+    def refitted(kept: list[tuple[str, str]]) -> tuple[ModelScore | None, bool | None, str]:
+        """The closed form of ``kept`` refitted, whether it is missing (:func:`_judge`) and why."""
+        log.info("discovery: refitting %s", ", ".join(f"{t} ({e})" for e, t in kept))
+        score = refit_closed_form(physics, kept, first_order(kept), data.widths, train, validation, rule, max_nfev,
+                                  initial_state, first_order)
+        if score is None:
+            return None, None, "no term of the closed form is determined by the records"
+        return score, *_judge(baseline, library_best, score, rule)
+
+    discovered, missing, reason = refitted([pairs[i] for i in chosen])
+    if missing is None:  # the first-order support does not hold: the single terms, screened by short refits
+        log.info("discovery: the first-order closed form does not hold; screening %d single terms", len(usable))
+        short = {i: fit_closed_form(physics, [pairs[i]], first_order([pairs[i]]), data.widths, train, SCREEN_NFEV,
+                                    initial_state) for i in usable}
+        ranked = sorted((fitted[1].mismatch, i) for i, fitted in short.items() if fitted is not None)
+        screened = [refitted([pairs[i]]) for _, i in ranked[:SCREEN]]
+        held = [s for s in screened if s[1] is not None]
+        if held:
+            discovered, missing, reason = min(held, key=lambda s: s[0].criterion)
     if discovered is None:
-        return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
-                         "no term of the closed form is determined by the records", samples)
+        return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False, reason, samples)
     effect = discovered.model.effects["discovered"]
     samples["closed_form"] = _closed_form_samples(effect, data.samples, variables, next(iter(equations)))
-    missing, reason = _judge(baseline, library_best, discovered, rule)
     if missing is None:  # the closed form does not improve on the physics: nothing is missing
         samples["closed_form"] = torch.zeros_like(samples["learned"])
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
