@@ -60,6 +60,7 @@ from torchpaml._metrics import mismatch
 from torchpaml._parameters import unphysical_values
 from torchpaml._simulate.records import simulate_record
 from torchpaml._simulate.sensitivity import raw_parameters
+from torchpaml._simulate.solvers import engine_solver
 from torchpaml._simulate.probes import Secant, TangentLinear, assigned
 from torchpaml._simulate.warm import WarmStart
 from torchpaml._physics.effects import AbstractEffect
@@ -320,10 +321,13 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
 
 
 def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None, warm: list[WarmStart]) -> float:
-    r"""The :func:`~torchpaml._metrics.mismatch` over the training records from ``states`` (or rest); inf if the
-    simulation blows up. Each record's RK4 solution is left in its :class:`~torchpaml.WarmStart` of ``warm``."""
+    r"""The :func:`~torchpaml._metrics.mismatch` over the training records from ``states`` (or rest), simulated by the
+    solver that a fit of ``physics`` starts from (:func:`~torchpaml._simulate.solvers.engine_solver`; the fit then
+    checks its own step); inf if the simulation blows up. Each record's solution is left in its
+    :class:`~torchpaml.WarmStart` of ``warm``."""
+    solver = engine_solver(physics)
     try:
-        outputs = [simulate_record(physics, r, x0, warm=w).flatten()
+        outputs = [simulate_record(physics, r, x0, solver=solver, warm=w).flatten()
                    for r, x0, w in zip(train, states or [None] * len(train), warm, strict=True)]
     except SimulationError:
         return math.inf
