@@ -280,7 +280,7 @@ def discover_missing_force(
     if missing is None:  # the first-order support does not hold: the single terms, screened by short refits
         log.info("discovery: the first-order closed form does not hold; screening %d single terms", len(usable))
         short = {i: fit_closed_form(physics, [pairs[i]], first_order([pairs[i]]), data.widths, train, SCREEN_NFEV,
-                                    initial_state) for i in usable}
+                                    initial_state) for i in usable if [i] != chosen}  # the support refitted above
         ranked = sorted((fitted[1].mismatch, i) for i, fitted in short.items() if fitted is not None)
         screened = [refitted([pairs[i]]) for _, i in ranked[:SCREEN]]
         held = [s for s in screened if s[1] is not None]
