@@ -21,6 +21,7 @@ from torchpaml import (
     Positive,
     Real,
     SecondOrderPhysics,
+    SelectionRule,
     SparseRegression,
     TermLibrary,
     Simulated,
@@ -28,6 +29,7 @@ from torchpaml import (
     diagnose,
     discover_missing_force,
     discovery_to_dict,
+    fit_physics,
     mismatch,
     model_ladder,
     rank_missing_effects,
@@ -35,6 +37,8 @@ from torchpaml import (
     register_parameters,
     state_vector,
 )
+
+from torchpaml._diagnostics.closed_form import refit_closed_form
 
 run = load("discovery/run.py")
 forces = load("discovery/forces.py")
@@ -218,3 +222,16 @@ def test_on_a_ladder_discovery_finds_a_second_effect_on_top_of_a_first():
     assert "u*x**2" in terms and terms["u*x**2"] == pytest.approx(-0.5, rel=0.1), content
     assert content["nrmse_validation"]["physics"] > 1.3 * floor  # the last rung still missed it
     assert content["nrmse_validation"]["discovered"] < 1.2 * floor, content
+
+
+def test_a_closed_form_that_blows_up_on_the_validation_records_is_dropped_not_raised():
+    """A softening spring (+x**3) fitted on small swings escapes its well on the validation's large ones (there
+    the device stays linear): the refit has no usable closed form (``None``) instead of raising out of discovery."""
+    train = Simulated(run.truth(HiddenForce(1.0, lambda x, v, u: x**3)), "pseudorandom", 0.5, [0], 30.0, 0.05,
+                      noise=run.NOISE).experiments()
+    validation = Simulated(run.truth(), "multisine", 3.0, [1], 30.0, 0.05, noise=run.NOISE).experiments()
+    physics = run.physics()
+    fit_physics(physics, train)
+    pairs = [("acceleration", "x**3")]
+    assert refit_closed_form(physics, pairs, [1.0], {}, train, validation, SelectionRule(), 40, "rest",
+                             lambda kept: None) is None

@@ -82,14 +82,17 @@ def refit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[
            max_nfev: int, initial_state: str, first_order: Callable[[list[tuple[str, str]]], list[float] | None]
            ) -> ModelScore | None:
     """``physics + DiscoveredForce(pairs)`` refitted and scored, with honest numbers (module docstring, step 3);
-    ``None`` when no term survives. Each reduced support starts from its own first-order coefficients
+    ``None`` when no term survives or it blows up. Each reduced support starts from its own first-order coefficients
     (``first_order``), not from the previous refit's, whose collinear terms carry no information."""
     index = state_columns(physics)
     owner = {width_symbol(s): s for s in index}
 
     def refit(kept: list[tuple[str, str]], start: list[float]) -> ModelScore | None:
         fitted = fit_closed_form(physics, kept, start, widths, train, max_nfev, initial_state)
-        return None if fitted is None else score_model(*fitted, validation, rule, initial_state)
+        try:
+            return None if fitted is None else score_model(*fitted, validation, rule, initial_state)
+        except SimulationError:  # it blows up on the validation records (or their initial states' fit)
+            return None
 
     score = refit(pairs, coefficients)
     for _ in range(8):  # each pass removes or replaces at least one term, or stops
