@@ -28,10 +28,11 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
    from the typical change of $s$ over one sample to its RMS), and replaced by its limit at an edge
    (a sign, or a linear term); terms whose standard error exceeds their coefficient, and terms too
    small to matter, are dropped, and the rest refitted. Where that support does not hold (no term is
-   determined, or it does not beat the physics), first order was misled (a physics far from the
-   truth, as linear tanks whose outflow is a square root): every single term is fitted with the physics
-   by a few output-error iterations (:data:`SCREEN_NFEV`), the :data:`SCREEN` that fit best are refitted
-   in full, and the best by the criterion is kept.
+   determined, or it does not beat the physics), or where the records do not determine a combination of
+   the physics' parameters (a direction left in the projection, along which first order is unreliable:
+   linear tanks whose fit sits at a double pole), first order may be misled: every single term is also
+   fitted with the physics by a few output-error iterations (:data:`SCREEN_NFEV`), the :data:`SCREEN` that
+   fit best are refitted in full, and the best of all by the criterion is kept.
 4. **Judge.** The closed form is scored on the validation records like every rung and
    **recommended** when it beats the physics by the ranking's rules and the best library effect's
    criterion by more than the threshold; otherwise the library effect, which has a name, is
@@ -68,7 +69,7 @@ log = logging.getLogger(__name__)
 DUPLICATE = 1e-9
 #: Relative central-difference step of the physics' own sensitivities.
 STEP = 1e-6
-#: Where the sparse regression's support does not hold when refitted (module docstring, step 3), every single term
+#: Where the sparse regression's support may be misled (module docstring, step 3), every single term
 #: is fitted with the physics for at most SCREEN_NFEV evaluations, and the SCREEN that fit the training records best
 #: are refitted in full.
 SCREEN, SCREEN_NFEV = 4, 10
@@ -200,7 +201,7 @@ def discover_missing_force(
     *,
     library: TermLibrary | None = None,
     regression: SparseRegression | None = None,
-    max_iter: int = 60,
+    max_iter: int = 25,
     max_nfev: int = 40,
     seed: int = 0,
 ) -> Discovery:
@@ -276,16 +277,17 @@ def discover_missing_force(
             return None, None, "no term of the closed form is determined by the records"
         return score, *_judge(baseline, library_best, score, rule)
 
-    discovered, missing, reason = refitted([pairs[i] for i in chosen])
-    if missing is None:  # the first-order support does not hold: the single terms, screened by short refits
-        log.info("discovery: the first-order closed form does not hold; screening %d single terms", len(usable))
+    candidates = [refitted([pairs[i] for i in chosen])]
+    sloppy = Q.shape[1] < J.shape[1]  # a combination of the physics' parameters that the records do not determine
+    if candidates[0][1] is None or sloppy:  # first order may be misled: the single terms, screened by short refits
+        log.info("discovery: the first-order closed form %s; screening %d single terms",
+                 "rests on a physics the records do not determine" if sloppy else "does not hold", len(usable))
         short = {i: fit_closed_form(physics, [pairs[i]], first_order([pairs[i]]), data.widths, train, SCREEN_NFEV,
                                     initial_state) for i in usable if [i] != chosen}  # the support refitted above
         ranked = sorted((fitted[1].mismatch, i) for i, fitted in short.items() if fitted is not None)
-        screened = [refitted([pairs[i]]) for _, i in ranked[:SCREEN]]
-        held = [s for s in screened if s[1] is not None]
-        if held:
-            discovered, missing, reason = min(held, key=lambda s: s[0].criterion)
+        candidates += [refitted([pairs[i]]) for _, i in ranked[:SCREEN]]
+    held = [c for c in candidates if c[1] is not None]
+    discovered, missing, reason = min(held, key=lambda c: c[0].criterion) if held else candidates[0]
     if discovered is None:
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False, reason, samples)
     effect = discovered.model.effects["discovered"]
