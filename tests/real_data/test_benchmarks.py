@@ -3,7 +3,8 @@
 Skipped cleanly when ``../shared/data`` is absent. The whole experiments (ladder, test metrics,
 report) run as ``python experiments/{silverbox,cascaded_tanks}/run.py --out DIR``; these tests pin the
 pieces that every number there rests on: loading, the split, the initial-state rule, the metric. The
-discoveries on the linear physics (``--discover``'s step, about a minute each) run in the slow lane.
+discoveries on the linear physics (``--discover``'s step, about a minute each) run in the experiments lane
+(``make test-experiments``).
 """
 
 import pytest
@@ -43,7 +44,7 @@ def test_cascaded_tanks_linear_physics_from_the_estimated_shared_initial_state()
     assert 0.9 < float(error.square().mean().sqrt()) < 1.4  # measured 1.16 V on the 75 % split, linear
 
 
-@pytest.mark.slow
+@pytest.mark.experiment
 def test_silverbox_discovery_writes_the_cubic_spring_in_closed_form():
     """Discovery alone on the linear physics (``run.py --discover``'s step) holds x**3 and reaches 1.0 mV on
     test_multisine."""
@@ -58,7 +59,7 @@ def test_silverbox_discovery_writes_the_cubic_spring_in_closed_form():
     assert rmse["test_multisine"] <= 1.0, rmse  # measured 0.91 mV; the linear physics 8.81 mV
 
 
-@pytest.mark.slow
+@pytest.mark.experiment
 def test_cascaded_tanks_discovery_finds_what_the_linear_tanks_miss():
     """Discovery alone on the linear tanks (``run.py --discover``'s step): the linear fit sits at a double pole that
     the records do not determine, so the refitted single terms compete with the regression's support; measured: a

@@ -1,7 +1,7 @@
 """The Bouc-Wen benchmark (../shared/data/boucwen): the data, the user's linear physics, the official metric.
 
 Skipped cleanly when the data are absent. The whole experiment, ``python experiments/boucwen/run.py --out DIR``
-(about 100 s), runs in the slow lane.
+(about 100 s), runs in the experiments lane (`make test-experiments`).
 """
 
 import pytest
@@ -28,7 +28,7 @@ def test_the_linear_mass_spring_damper_on_the_official_test_signals():
     assert 1.2e-4 < rmse["test_multisine"] < 2.2e-4 and 1.0e-4 < rmse["test_sinesweep"] < 2.0e-4
 
 
-@pytest.mark.slow
+@pytest.mark.experiment
 def test_the_ladder_finds_the_hysteresis_and_beats_the_best_published_figure(tmp_path):
     result = boucwen.main(["--out", str(tmp_path)])
     assert result["found"][0] == "hysteresis"
