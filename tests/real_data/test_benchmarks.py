@@ -63,7 +63,7 @@ def test_silverbox_discovery_writes_the_cubic_spring_in_closed_form():
 def test_cascaded_tanks_discovery_finds_what_the_linear_tanks_miss():
     """Discovery alone on the linear tanks (``run.py --discover``'s step): the linear fit sits at a double pole that
     the records do not determine, so the refitted single terms compete with the regression's support; measured: a
-    constant rate on the upper tank, 0.671 V on test (on one thread a two-term form, 0.568 V); the linear 1.156 V."""
+    constant rate on the upper tank, 0.671 V on test (on one thread and on two); the linear 1.156 V."""
     tanks = load("cascaded_tanks/tanks.py")
     estimation = Experiment.from_csv(cascaded.DATA / "estimation.csv", hold=cascaded.HOLD)
     test = Experiment.from_csv(cascaded.DATA / "test.csv", hold=cascaded.HOLD)

@@ -201,7 +201,7 @@ def discover_missing_force(
     *,
     library: TermLibrary | None = None,
     regression: SparseRegression | None = None,
-    max_iter: int = 25,
+    max_iter: int = 60,
     max_nfev: int = 40,
     seed: int = 0,
 ) -> Discovery:
