@@ -2,6 +2,7 @@
 
 import copy
 
+import numpy as np
 import pytest
 import torch
 
@@ -24,6 +25,7 @@ from torchpaml import (
     sine,
 )
 from torchpaml._certificates import draw_chebyshev
+from torchpaml._fit.residual_fit import RIDGE, project
 
 
 def test_bounded_fit_recovers_zeta(grid):
@@ -108,6 +110,27 @@ def test_variable_projection_recovers_a_residual_of_its_own_class(grid):
     assert torch.allclose(model.poles(), truth.poles(), atol=1e-5)
     held_out = pseudorandom(grid, 2.0, seed=5)
     assert mismatch(truth(grid, held_out), model(grid, held_out)) < 1e-4
+
+
+def test_the_projection_is_the_ridge_least_squares_of_numpy_and_its_gradient_is_exact():
+    """``project``'s coefficients and fitted values against numpy's least squares on the stacked ridge problem
+    ``[A; sqrt(lambda) I] c = [e; 0]`` (A: unit-norm columns), on regressors that are nearly collinear (a single
+    sine through a 3-pole filter: the case the ridge is for); its gradient against central differences."""
+    generator = torch.Generator().manual_seed(1)
+    t = torch.linspace(0, 20, 400, dtype=torch.float64)
+    base = torch.stack([torch.sin(t), torch.cos(t), torch.sin(t) + 1e-7 * torch.randn(400, generator=generator),
+                        torch.randn(400, generator=generator)], dim=-1)
+    regressors = (base * torch.tensor([1.0, 3.0, 0.5, 0.1], dtype=torch.float64)).reshape(1, 400, 2, 2)
+    target = torch.randn(1, 400, generator=generator, dtype=torch.float64)
+    coefficients, fitted = project(regressors, target)
+    A = regressors.reshape(400, 4).numpy()
+    scale = np.linalg.norm(A, axis=0)
+    stacked = np.vstack([A / scale, RIDGE**0.5 * np.eye(4)])
+    oracle = np.linalg.lstsq(stacked, np.concatenate([target.reshape(-1).numpy(), np.zeros(4)]), rcond=None)[0]
+    assert np.allclose(fitted.reshape(-1).numpy(), (A / scale) @ oracle, rtol=0, atol=1e-9)
+    assert np.allclose(coefficients.reshape(-1).numpy() * scale, oracle, rtol=1e-6, atol=1e-9)
+    small = regressors[:, :40].clone().requires_grad_(True)
+    assert torch.autograd.gradcheck(lambda r: project(r, target[:, :40])[1], (small,), eps=1e-6, atol=1e-5)
 
 
 def test_mlp_residual_fit_reduces_the_error(grid):
