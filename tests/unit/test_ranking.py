@@ -92,6 +92,29 @@ def test_the_first_order_step_starts_the_refit_nearer():
         assert stepped.parameters[key] == pytest.approx(value, rel=1e-6)
 
 
+def test_a_refit_that_ends_worse_than_the_baseline_is_rescued_from_a_shortened_move():
+    """A first-order step four times too long (strength and unknowns) fails the move's check; the fit from the
+    unmoved unknowns, cut to one evaluation, ends worse than the baseline (a poor optimum's stand-in); then half the
+    move starts a fit that beats the baseline, and that fit is returned, the model left at it."""
+    from torchpaml._data import Simulated
+    from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, TangentLinear, refit_effect
+
+    true = Oscillator(zeta=0.2, omega0=2.0, gain=4.0, learn=()) + CubicStiffness(2.0)
+    record = Simulated(true, "pseudorandom", 1.5, [0], 30.0, 0.05, noise=0.02).experiments()[0]
+    base = Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=("zeta", "omega0", "gain"))
+    fit = fit_physics(base, record)
+    engine = TangentLinear.of(base, [record], fit.initial_states)
+    name, ftol = "cubic_stiffness.k3", REFIT_CRITERION_STEP / len(record.y)
+    _, _, strength, move = _first_order(base + CubicStiffness(), name, fit, float(record.y.norm()), 1e-4,
+                                        engine.outputs(base) / float(record.y.norm()), engine)
+    alone = refit_effect(base + CubicStiffness(), name, 4 * strength, [record], 1, "rest", ftol=ftol)
+    assert alone.mismatch > fit.mismatch  # the premise: without a move the cut fit ends worse than the baseline
+    extended = base + CubicStiffness()
+    rescued = refit_effect(extended, name, 4 * strength, [record], 1, "rest", fit, 4 * move, ftol)
+    assert rescued.mismatch < fit.mismatch
+    assert extended.physical_parameters()["cubic_stiffness.k3"] == pytest.approx(rescued.parameters[name], rel=1e-12)
+
+
 def test_no_candidates_give_the_fitted_baseline_alone(duffing):
     ranking = rank_missing_effects(Oscillator(zeta=0.3, learn=("zeta", "omega0", "gain")), [], *duffing)
     assert ranking.entries == [] and ranking.recommended is None
