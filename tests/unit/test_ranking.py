@@ -22,7 +22,8 @@ from torchpaml import (
     simulate_record,
     time_grid,
 )
-from torchpaml._diagnostics.ranking import Secant, _first_order
+from torchpaml._data import Simulated
+from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, Secant, TangentLinear, _first_order, refit_effect
 
 
 @pytest.fixture(scope="module")
@@ -70,21 +71,25 @@ def test_the_true_effect_explains_almost_all_of_a_small_residual(duffing):
     assert strength == pytest.approx(0.5, rel=0.15)
 
 
-def test_the_first_order_step_starts_the_refit_nearer():
-    """The refit from the first-order Gauss-Newton step (strength and the physics' own parameters) reaches the
-    optimum of a refit from the strength alone (to 1e-6, both at the ranking's tolerance), in fewer simulations.
-    The case of benchmarks/bench_ranking.py: a strong cubic term (k3 = 2), 2 % noise."""
-    from torchpaml._data import Simulated
-    from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, TangentLinear, refit_effect
-
+def strong_cubic_first_order():
+    """The case of benchmarks/bench_ranking.py, a strong cubic term (k3 = 2) and 2 % noise: the linear oscillator,
+    its record, its fit, and the first-order strength and move of cubic stiffness."""
     true = Oscillator(zeta=0.2, omega0=2.0, gain=4.0, learn=()) + CubicStiffness(2.0)
     record = Simulated(true, "pseudorandom", 1.5, [0], 30.0, 0.05, noise=0.02).experiments()[0]
     base = Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=("zeta", "omega0", "gain"))
     fit = fit_physics(base, record)
     engine = TangentLinear.of(base, [record], fit.initial_states)
+    _, _, strength, move = _first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(record.y.norm()),
+                                        1e-4, engine.outputs(base) / float(record.y.norm()), engine)
+    return base, record, fit, strength, move
+
+
+def test_the_first_order_step_starts_the_refit_nearer():
+    """The refit from the first-order Gauss-Newton step (strength and the physics' own parameters) reaches the
+    optimum of a refit from the strength alone (to 1e-6, both at the ranking's tolerance), in fewer simulations.
+    The case of benchmarks/bench_ranking.py: a strong cubic term (k3 = 2), 2 % noise."""
+    base, record, fit, strength, move = strong_cubic_first_order()
     name, ftol = "cubic_stiffness.k3", REFIT_CRITERION_STEP / len(record.y)
-    _, _, strength, move = _first_order(base + CubicStiffness(), name, fit, float(record.y.norm()), 1e-4,
-                                        engine.outputs(base) / float(record.y.norm()), engine)
     stepped = refit_effect(base + CubicStiffness(), name, strength, [record], 40, "rest", fit, move, ftol)
     alone = refit_effect(base + CubicStiffness(), name, strength, [record], 40, "rest", ftol=ftol)
     assert stepped.evaluations < alone.evaluations
@@ -96,17 +101,8 @@ def test_a_refit_that_ends_worse_than_the_baseline_is_rescued_from_a_shortened_m
     """A first-order step four times too long (strength and unknowns) fails the move's check; the fit from the
     unmoved unknowns, cut to one evaluation, ends worse than the baseline (a poor optimum's stand-in); then half the
     move starts a fit that beats the baseline, and that fit is returned, the model left at it."""
-    from torchpaml._data import Simulated
-    from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, TangentLinear, refit_effect
-
-    true = Oscillator(zeta=0.2, omega0=2.0, gain=4.0, learn=()) + CubicStiffness(2.0)
-    record = Simulated(true, "pseudorandom", 1.5, [0], 30.0, 0.05, noise=0.02).experiments()[0]
-    base = Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=("zeta", "omega0", "gain"))
-    fit = fit_physics(base, record)
-    engine = TangentLinear.of(base, [record], fit.initial_states)
+    base, record, fit, strength, move = strong_cubic_first_order()
     name, ftol = "cubic_stiffness.k3", REFIT_CRITERION_STEP / len(record.y)
-    _, _, strength, move = _first_order(base + CubicStiffness(), name, fit, float(record.y.norm()), 1e-4,
-                                        engine.outputs(base) / float(record.y.norm()), engine)
     alone = refit_effect(base + CubicStiffness(), name, 4 * strength, [record], 1, "rest", ftol=ftol)
     assert alone.mismatch > fit.mismatch  # the premise: without a move the cut fit ends worse than the baseline
     extended = base + CubicStiffness()
