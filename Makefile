@@ -37,7 +37,7 @@ test: install
 test-all: install-fleet
 	$(PYTHON) -m pytest -q -n 2 -m "not experiment"; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
 
-# The whole experiments on the measured data (Silverbox's and the tanks' discovery, the Bouc-Wen ladder): about three
+# The whole experiments on the measured data (Silverbox's and the tanks' discovery, the Bouc-Wen ladder): about four
 # minutes; they skip without ../shared/data.
 test-experiments: install
 	$(PYTHON) -m pytest -q -n 2 -m experiment; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
