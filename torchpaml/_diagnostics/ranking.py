@@ -308,8 +308,7 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     def moved_start(fraction: float) -> tuple[bool, list[torch.Tensor] | None]:
         """Whether ``fraction`` of the move fits the training records better than the baseline (the model left
         there), and the initial states it moves to."""
-        count = len(origin)
-        shifted = None if states is None else [x + fraction * d for x, d in zip(states, move[count:].split(
+        shifted = None if states is None else [x + fraction * d for x, d in zip(states, move[len(origin):].split(
             [x.numel() for x in states]), strict=True)]
         with torch.no_grad():
             for tensor, value, delta in zip(raw, origin, move, strict=False):  # the move's tail: initial states'
@@ -327,7 +326,7 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     estimate = _halving_strength(extended, name, start, fit, states)
     if estimate.mismatch <= baseline.mismatch:
         return estimate
-    kept = copy.deepcopy(extended.state_dict()), extended.solver
+    fitted_state, fitted_solver = copy.deepcopy(extended.state_dict()), extended.solver
     for fraction in RESCUE_FRACTIONS:
         better, shifted = moved_start(fraction)
         if better:
@@ -338,8 +337,8 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
             if rescued.mismatch < estimate.mismatch:
                 return rescued
             break
-    extended.load_state_dict(kept[0])
-    extended.solver = kept[1]
+    extended.load_state_dict(fitted_state)
+    extended.solver = fitted_solver
     return estimate
 
 
