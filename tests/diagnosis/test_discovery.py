@@ -91,6 +91,20 @@ def test_a_first_order_support_that_does_not_hold_gives_way_to_the_best_refitted
     assert content["nrmse_validation"]["discovered"] < 1.2 * floor, content
 
 
+def test_where_first_order_is_misled_the_refitted_search_adds_a_second_term_that_earns_its_place():
+    """The screen finds one of two missing forces; the search goes on forward, one refitted term at a time, and keeps
+    the second because it lowers the criterion by more than the threshold."""
+    truth = run.truth(forces.CubicDamping(0.5)) + forces.ForceFactor(0.5)
+    train, validation, floor = run.records(truth)
+    ranking = rank_missing_effects(run.physics(), default_effects(), train, validation, shortlist=2)
+    found = discover_missing_force(ranking, train, validation, regression=_Misled(), library=TermLibrary(signs=False))
+    content = discovery_to_dict(found)
+    terms = dict((t["term"], t["coefficient"]) for t in content["terms"])
+    assert sorted(terms) == ["u*x**2", "v**3"], content
+    assert terms["v**3"] == pytest.approx(-0.5, rel=0.1) and terms["u*x**2"] == pytest.approx(-0.5, rel=0.1), content
+    assert content["nrmse_validation"]["discovered"] < 1.2 * floor, content
+
+
 def test_on_the_physics_alone_nothing_is_recommended():
     found, _ = run.discover(run.truth(), shortlist=1)
     content = discovery_to_dict(found)

@@ -30,9 +30,12 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
    small to matter, are dropped, and the rest refitted. Where that support does not hold (no term is
    determined, or it does not beat the physics), or where the records do not determine a combination of
    the physics' parameters (a direction left in the projection, along which first order is unreliable:
-   linear tanks whose fit sits at a double pole), first order may be misled: every single term is also
-   fitted with the physics by a few output-error iterations (:data:`SCREEN_NFEV`), the :data:`SCREEN` that
-   fit best are refitted in full, and the best of all by the criterion is kept.
+   linear tanks whose fit sits at a double pole), first order may be misled, and the search goes by refits:
+   every single term is also fitted with the physics by a few output-error iterations (:data:`SCREEN_NFEV`),
+   the :data:`SCREEN` that fit best are refitted in full, and the best of all by the criterion is kept. From
+   there it goes forward: the kept support plus each other term is screened the same way, and the best
+   extension is kept while it lowers the criterion by more than the rule's threshold (the pruning's margin,
+   the other way), up to the regression's ``max_terms``.
 4. **Judge.** The closed form is scored on the validation records like every rung and
    **recommended** when it beats the physics by the ranking's rules and the best library effect's
    criterion by more than the threshold; otherwise the library effect, which has a name, is
@@ -69,9 +72,9 @@ log = logging.getLogger(__name__)
 DUPLICATE = 1e-9
 #: Relative central-difference step of the physics' own sensitivities.
 STEP = 1e-6
-#: Where the sparse regression's support may be misled (module docstring, step 3), every single term
-#: is fitted with the physics for at most SCREEN_NFEV evaluations, and the SCREEN that fit the training records best
-#: are refitted in full.
+#: Where the sparse regression's support may be misled (module docstring, step 3), every single term (then every
+#: one-term extension of the kept support) is fitted with the physics for at most SCREEN_NFEV evaluations, and the
+#: SCREEN that fit the training records best are refitted in full.
 SCREEN, SCREEN_NFEV = 4, 10
 
 
@@ -277,17 +280,36 @@ def discover_missing_force(
             return None, None, "no term of the closed form is determined by the records"
         return score, *_judge(baseline, library_best, score, rule)
 
+    def screened(base: list[tuple[str, str]], starts: list[float]) -> list[tuple[ModelScore | None, bool | None, str]]:
+        """``base`` (fitted coefficients ``starts``) plus each usable term not in it, fitted with the physics for
+        :data:`SCREEN_NFEV` evaluations; the :data:`SCREEN` that fit the training records best, refitted in full."""
+        short = {}
+        for extra in (pairs[i] for i in usable if pairs[i] not in base):
+            kept = base + [extra]
+            if kept != [pairs[i] for i in chosen]:  # that support is refitted already
+                fitted = fit_closed_form(physics, kept, first_order(kept) or [*starts, 0.0], data.widths, train,
+                                         SCREEN_NFEV, initial_state)
+                if fitted is not None:
+                    short[extra] = fitted[1].mismatch
+        return [refitted(base + [extra]) for extra in sorted(short, key=short.get)[:SCREEN]]
+
     candidates = [refitted([pairs[i] for i in chosen])]
     sloppy = Q.shape[1] < J.shape[1]  # a combination of the physics' parameters that the records do not determine
-    if candidates[0][1] is None or sloppy:  # first order may be misled: the single terms, screened by short refits
+    search = candidates[0][1] is None or sloppy  # first order may be misled: a search by refits
+    if search:
         log.info("discovery: the first-order closed form %s; screening %d single terms",
                  "rests on a physics the records do not determine" if sloppy else "does not hold", len(usable))
-        short = {i: fit_closed_form(physics, [pairs[i]], first_order([pairs[i]]), data.widths, train, SCREEN_NFEV,
-                                    initial_state) for i in usable if [i] != chosen}  # the support refitted above
-        ranked = sorted((fitted[1].mismatch, i) for i, fitted in short.items() if fitted is not None)
-        candidates += [refitted([pairs[i]]) for _, i in ranked[:SCREEN]]
+        candidates += screened([], [])
     held = [c for c in candidates if c[1] is not None]
-    discovered, missing, reason = min(held, key=lambda c: c[0].criterion) if held else candidates[0]
+    best = min(held, key=lambda c: c[0].criterion) if held else candidates[0]
+    while search and best[1] is not None and len(support := _support(best[0])) < regression.max_terms:
+        log.info("discovery: screening one more term beside %s", ", ".join(t for _, t in support[0]))
+        extended = [c for c in screened(*support) if c[1] is not None]  # forward, one term at a time
+        top = min(extended, key=lambda c: c[0].criterion, default=None)
+        if top is None or top[0].criterion >= best[0].criterion - rule.threshold:
+            break
+        best = top
+    discovered, missing, reason = best
     if discovered is None:
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False, reason, samples)
     effect = discovered.model.effects["discovered"]
@@ -298,6 +320,14 @@ def discover_missing_force(
                          f"the best closed form, {effect.expression()}, does not improve on the physics: {reason}", samples)
     return Discovery(baseline, library_best, neural.mismatch, neural_validation, effect, discovered, missing, reason,
                      samples)
+
+
+def _support(score: ModelScore) -> tuple[list[tuple[str, str]], list[float]]:
+    """The refitted closed form's ``(equation, term)`` pairs and their coefficients, the gain folded in."""
+    effect = score.model.effects["discovered"]
+    values, gain = effect.values(), float(effect.gain.detach())
+    return (list(zip(effect.equations, effect.terms, strict=True)),
+            [gain * values[name] for name in effect.parameter_names])
 
 
 def _distinct(indices: list[int], unit: torch.Tensor) -> list[int]:
