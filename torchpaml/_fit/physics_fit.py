@@ -38,7 +38,7 @@ from scipy.optimize import least_squares
 
 from torchpaml._data import Experiment
 from torchpaml._errors import ResolutionError, SimulationError
-from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver
+from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solver
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
 from torchpaml._parameters import record_uncertainty
 from torchpaml._physics.base import complete_state
@@ -204,19 +204,28 @@ def fit_physics(
         return least_squares(fun, x, jac=lambda x: evaluate(x)[1], bounds=(lower, upper), method="trf",
                              x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
 
-    def resolution(x: np.ndarray) -> FixedStep:
-        """The step check's solver at ``x`` (the model set to ``x`` first)."""
-        evaluate(x)
+    def outputs(residual: np.ndarray) -> list[torch.Tensor]:
+        """Each record's output (time, n_output) from the residual $r = (y - \\hat y)/\\|y\\|$."""
+        parts = (torch.from_numpy(residual) * scale).split([y.numel() for y in targets])
+        return [y[0] - part.reshape(y.shape[1:]) for y, part in zip(targets, parts, strict=True)]
+
+    def resolution(x: np.ndarray, optimum: bool) -> FixedStep:
+        """The step check's solver at ``x`` (the model set to ``x`` first): the whole check at an optimum, only the
+        step's stability at the start (a start's step error only delays the fit, whose optimum is checked)."""
+        residual = evaluate(x)[0]
+        most = STIFF_SUBSTEPS if switch else MAX_SUBSTEPS
         try:
-            return resolved_solver(physics, solver, records, starts(x), float(np.linalg.norm(fun(x))),
-                                   STIFF_SUBSTEPS if switch else MAX_SUBSTEPS)
+            if not optimum:
+                return stable_solver(physics, solver, records, starts(x), most)
+            return resolved_solver(physics, solver, records, starts(x), float(np.linalg.norm(residual)), most,
+                                   outputs(residual))
         except ResolutionError:
             if not switch or isinstance(solver, TRBDF2):
                 raise
             return TRBDF2(substeps=1, segment=solver.segment)  # stiff (or unresolved) for RK4: the implicit method
 
     x, result = start, None
-    while (resolved := resolution(x)) != solver or result is None:  # checked at the start, then at each optimum
+    while (resolved := resolution(x, result is not None)) != solver or result is None:  # at the start, then each optimum
         if resolved != solver:
             solver = resolved
             memo.clear()

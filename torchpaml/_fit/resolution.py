@@ -36,7 +36,7 @@ from torchpaml._simulate.solvers import RK4, TRBDF2, FixedStep
 from torchpaml._simulate.step_control import MAX_SUBSTEPS, next_substeps
 from torchpaml._simulate.stiffness import stable_substeps, stiffness
 
-__all__ = ["MAX_SUBSTEPS", "STEP_FLOOR", "STEP_TOLERANCE", "resolved_solver", "step_gap"]
+__all__ = ["MAX_SUBSTEPS", "STEP_FLOOR", "STEP_TOLERANCE", "resolved_solver", "stable_solver", "step_gap"]
 
 STEP_TOLERANCE = 0.1
 STEP_FLOOR = 1e-6
@@ -44,16 +44,17 @@ STEP_FLOOR = 1e-6
 PROBE_STRIDE = 16
 
 
-def step_gap(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None]
-             ) -> float:
+def step_gap(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None],
+             outputs: Sequence[torch.Tensor] | None = None) -> float:
     """$g$ (module docstring) of ``solver`` over the records that the engine simulates, from each record's initial
-    state (or rest); 0 where every record takes the exact path."""
+    state (or rest); 0 where every record takes the exact path. ``outputs``: each record's output at ``solver``
+    (time, n_output) where the caller has it (a fit's last evaluation), else simulated here."""
     squared, norm = 0.0, 0.0
-    for record, x0 in zip(records, states, strict=True):
+    for i, (record, x0) in enumerate(zip(records, states, strict=True)):
         if exact_step(physics, record.t) is not None:
             continue
-        coarse = simulate_record(physics, record, x0, solver=solver)
-        fine = simulate_record(physics, record, x0, solver=solver.at(2 * solver.substeps))
+        coarse = simulate_record(physics, record, x0, solver=solver)[0] if outputs is None else outputs[i]
+        fine = simulate_record(physics, record, x0, solver=solver.at(2 * solver.substeps))[0]
         squared += float((coarse - fine).square().sum())
         norm += float(record.y.square().sum())
     return 0.0 if norm == 0.0 else math.sqrt(squared / norm)
@@ -73,21 +74,32 @@ def _stiffness(physics, record: Experiment, x0: torch.Tensor | None, solver: Fix
     return stiffness(physics, probe.t - probe.t[0], probe.u[None], states[None]) / stride
 
 
+def stable_solver(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None],
+                  most_stable: int = MAX_SUBSTEPS) -> FixedStep:
+    """``solver`` at the substeps where its step is stable along the trajectory of ``physics``
+    (:mod:`~torchpaml._simulate.stiffness`): itself for an implicit method, or where every record takes the exact
+    path. Raises :class:`~torchpaml._errors.ResolutionError` where that needs more than ``most_stable``."""
+    if not isinstance(solver, RK4):
+        return solver
+    sigma = max((_stiffness(physics, r, x0, solver) for r, x0 in zip(records, states, strict=True)
+                 if exact_step(physics, r.t) is None), default=0.0)
+    return solver.at(stable_substeps(solver, sigma, most_stable))
+
+
 def resolved_solver(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None],
-                    misfit: float, most_stable: int = MAX_SUBSTEPS) -> FixedStep:
+                    misfit: float, most_stable: int = MAX_SUBSTEPS, outputs: Sequence[torch.Tensor] | None = None
+                    ) -> FixedStep:
     """The solver at the substeps where the fitted ``physics`` passes the step check (module docstring): ``solver``
     where it passes; else, where its explicit step is unstable along the fitted trajectory, it at the substeps
-    that make it stable (:mod:`~torchpaml._simulate.stiffness`); else it at the next power-of-two multiple its
-    order predicts to pass. Raises :class:`~torchpaml._errors.ResolutionError` beyond :data:`MAX_SUBSTEPS`, or
-    where stability alone needs more than ``most_stable``."""
+    that make it stable (:func:`stable_solver`); else it at the next power-of-two multiple its order predicts to
+    pass. ``outputs``: each record's output at ``solver`` where the caller has it (:func:`step_gap`). Raises
+    :class:`~torchpaml._errors.ResolutionError` beyond :data:`MAX_SUBSTEPS`, or where stability alone needs more
+    than ``most_stable``."""
     m = solver.substeps
-    if isinstance(solver, RK4):  # explicit: its step must be stable along the trajectory
-        sigma = max((_stiffness(physics, r, x0, solver) for r, x0 in zip(records, states, strict=True)
-                     if exact_step(physics, r.t) is None), default=0.0)
-        stable = stable_substeps(solver, sigma, most_stable)
-        if stable != m:  # the step doubling cannot judge an unstable step
-            return solver.at(stable)
-    gap = step_gap(physics, solver, records, states)
+    stable = stable_solver(physics, solver, records, states, most_stable)
+    if stable != solver:  # the step doubling cannot judge an unstable step
+        return stable
+    gap = step_gap(physics, solver, records, states, outputs)
     allowed = STEP_TOLERANCE * misfit
     if gap <= max(allowed, STEP_FLOOR):
         return solver
