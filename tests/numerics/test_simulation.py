@@ -165,6 +165,8 @@ def test_exact_jacobian_matches_reverse_mode_autograd(zeta, hold):
     free = torch.stack([torch.stack([expected[3][b, :, b, i] for b in range(2)]) for i in range(2)], dim=-1)
     scale = float(oracle.abs().max())
     with torch.no_grad():
-        assert torch.allclose(y, physics(t, u, x0, hold=hold), rtol=0, atol=1e-14)
+        # the same transfer functions, recursed per output (the forward) or once for all states (the Jacobian's):
+        # equal to rounding, 1.2e-14 at most here on outputs of order 1
+        assert torch.allclose(y, physics(t, u, x0, hold=hold), rtol=0, atol=1e-13)
     assert float((J[:, :, 0, :3] - oracle).abs().max()) < 1e-9 * scale
     assert float((J[:, :, 0, 3:] - free).abs().max()) < 1e-9 * float(free.abs().max())

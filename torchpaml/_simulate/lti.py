@@ -130,24 +130,38 @@ def discrete_response(
     num[:n] = num[:n] + CN @ G1
     num[1:] = num[1:] + CN @ G0
     num = num + c[:, None, None] * D[None]
-    b = num.permute(1, 2, 0).reshape(p * m, n + 1)  # channel (j, i)
-    a = poles.expand(p * m, n)
-    x = u[..., None, :].expand(*u.shape[:2], p, m).reshape(*u.shape[:2], p * m)
-    y = iir_filter(x, b, a).reshape(*u.shape[:2], p, m).sum(-1)
+    y = _through_poles(u, num, poles)
     start = -u[:, 0] @ G1.T if x0 is None else x0 - u[:, 0] @ G1.T
     return y + _free_response(CN, poles, start, u)
+
+
+def _through_poles(x: torch.Tensor, numerators: torch.Tensor, poles: torch.Tensor) -> torch.Tensor:
+    r"""$y_j = \sum_i B_{ji}(q)/p(q)\; x_i$ from rest: x (batch, time, m), numerators (n + 1, p, m) over $q^{-k}$,
+    poles the monic $p$'s coefficients after the leading 1, (n,); returns (batch, time, p).
+
+    With one output, one recursion per input channel with its own numerator. With several, every channel
+    shares the denominator: one recursion $w_i = x_i/p(q)$ per input channel, and the numerators weigh its
+    delays, $y_j = \sum_{i,k} b_{kji}\, w_{i,t-k}$."""
+    n, p, m = poles.shape[0], numerators.shape[1], numerators.shape[2]
+    if p == 1:
+        return iir_filter(x, numerators[:, 0].T, poles.expand(m, n)).sum(-1, keepdim=True)
+    w = iir_filter(x, torch.ones(m, 1, dtype=x.dtype, device=x.device), poles.expand(m, n))
+    T = w.shape[1]
+    delays = w.new_zeros(*w.shape, n + 1)  # (batch, time, m, n + 1): w delayed by k, zero before the start
+    for k in range(min(n + 1, T)):
+        delays[:, k:, :, k] = w[:, : T - k]
+    return torch.einsum("btik,kji->btj", delays, numerators)
 
 
 def _free_response(CN: torch.Tensor, poles: torch.Tensor, x0: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
     r"""$y_k = C\Phi^k x_0$ as the impulse response of $z\,C\,\mathrm{adj}(zI - \Phi)x_0/p(z)$; (batch, time, p)."""
     n, p = CN.shape[0], CN.shape[1]
     batch, T = u.shape[:2]
-    impulse = torch.zeros(1, T, batch * p, dtype=u.dtype, device=u.device)
+    impulse = torch.zeros(1, T, 1, dtype=u.dtype, device=u.device)
     impulse[:, 0] = 1.0
-    numerator = torch.einsum("kpl,bl->bpk", CN, x0).reshape(batch * p, n)
-    numerator = torch.cat([numerator, torch.zeros_like(numerator[:, :1])], dim=1)
-    free = iir_filter(impulse, numerator, poles.expand(batch * p, n))
-    return free.reshape(T, batch, p).transpose(0, 1)
+    numerators = torch.einsum("kpl,bl->kbp", CN, x0).reshape(n, batch * p)
+    numerators = torch.cat([numerators, torch.zeros_like(numerators[:1])])[..., None]  # (n + 1, batch * p, 1)
+    return _through_poles(impulse, numerators, poles).reshape(T, batch, p).transpose(0, 1)
 
 
 def exact_step(physics, t: torch.Tensor) -> float | None:
