@@ -68,3 +68,35 @@ def test_continuous_time_residual_is_sampling_rate_independent():
     r_fine = residual(fine, u(fine)).detach()[0, ::2, 0]
     # both hold the same smooth input linearly: they differ by the O(dt^2) interpolation error
     assert float((r_coarse - r_fine).abs().max() / r_fine.abs().max()) < 1e-3
+
+
+def _slow_residual_record(seed: int, h: float, n: int = 800):
+    """A pump-like input (levels in [2, 10] held 10 samples) and what a physics misses: a slow response
+    (time constant 50 s) to u**2, with 1 % noise; sampled every ``h`` s."""
+    from torchpaml._simulate.lti import simulate_lti
+
+    g = torch.Generator().manual_seed(seed)
+    u = (2 + 8 * torch.rand(n // 10, generator=g, dtype=torch.float64)).repeat_interleave(10)[None, :, None]
+    one = torch.ones(1, 1, dtype=torch.float64)
+    e = simulate_lti(-0.02 * one, 0.002 * one, one, 0 * one, h, u**2, hold="zoh")
+    return torch.arange(n, dtype=torch.float64) * h, u, e + 0.01 * e.std() * torch.randn(e.shape, generator=g, dtype=torch.float64)
+
+
+def test_on_a_coarse_sampling_the_residual_band_shrinks_to_what_the_samples_resolve_and_it_generalises():
+    from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein
+    from torchpaml._metrics import mismatch
+
+    fine = ChebyshevHammerstein.for_sampling(3.0, 0.05)  # the default band is resolved: unchanged
+    default = ChebyshevHammerstein(3.0)
+    assert fine.bandwidth == default.bandwidth and fine.min_decay == default.min_decay
+    assert torch.equal(fine.poles(), default.poles())
+    h = 4.0  # the cascaded tanks' sampling: Nyquist at 0.79 rad/s, the default band starts at 0.5 1/s
+    (t, u, e), (tv, uv, ev) = _slow_residual_record(0, h), _slow_residual_record(1, h)
+    residual = ChebyshevHammerstein.for_sampling(10.5, h)
+    assert float(residual.poles().abs().max()) < math.sqrt(2) * math.pi / (2 * h)
+    estimate = fit_chebyshev_hammerstein(residual, t, u, e)
+    with torch.no_grad():
+        validation = float(mismatch(ev, residual(tv, uv)))
+    # measured: 2.3 % of the training target and 12 % of the validation one left (the default band: 21 % and
+    # 115 000 %, its nearly collinear states fitted with coefficients that cancel on training only)
+    assert estimate.unexplained < 0.05 and validation < 0.3, (estimate.unexplained, validation)

@@ -40,6 +40,7 @@ from torchpaml._diagnostics.ranking import ModelScore, Ranking
 from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.validity import AmplitudeBins, error_by_amplitude
 from torchpaml._errors import DataError
+from torchpaml._grid import uniform_step
 from torchpaml._simulate.records import simulate_record
 from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein
 from torchpaml._metrics import mismatch
@@ -149,8 +150,8 @@ def _stack(records: list[Experiment], what: str) -> tuple[torch.Tensor, torch.Te
 
 def _hybrid(step: ModelScore, train: list[Experiment], validation: list[Experiment], alpha: float) -> HybridScore:
     """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid."""
-    residual = ChebyshevHammerstein(alpha)
     t = train[0].t - train[0].t[0]
+    residual = ChebyshevHammerstein.for_sampling(alpha, uniform_step(t))
     u, y = _stack(train, "training")
     y_physics = torch.cat([simulate_record(step.model, r, x0) for r, x0 in zip(train, step.train_states, strict=True)])
     fit_chebyshev_hammerstein(residual, t, u, y - y_physics, rtol=DECISION_TOLERANCE)

@@ -57,6 +57,16 @@ def chebyshev_t(x: torch.Tensor, degrees: list[int]) -> torch.Tensor:
     return torch.stack([values[k] for k in degrees], dim=-1)
 
 
+#: The default filter: order, initial decay rate (1/s), stability margin (1/s) and bandwidth (rad/s).
+ORDER, DECAY, MIN_DECAY, BANDWIDTH = 5, 1.5, 0.5, 30.0
+
+
+def _default_frequencies(order: int) -> list[float]:
+    """Initial natural frequencies of the ``order // 2`` pole pairs, geometric from 1 to 6 rad/s."""
+    pairs = order // 2
+    return [math.exp(v) for v in torch.linspace(0.0, math.log(6.0), max(pairs, 1)).tolist()][:pairs]
+
+
 class ChebyshevHammerstein(AbstractResidual):
     r"""Chebyshev-Hammerstein residual $r = \sum_k R_k(s)[T_{2k+1}(u/\alpha)]$ (see the module docstring).
 
@@ -77,11 +87,11 @@ class ChebyshevHammerstein(AbstractResidual):
         self,
         alpha: float,
         n: int = 6,
-        order: int = 5,
+        order: int = ORDER,
         *,
-        decay: float = 1.5,
-        min_decay: float = 0.5,
-        bandwidth: float = 30.0,
+        decay: float = DECAY,
+        min_decay: float = MIN_DECAY,
+        bandwidth: float = BANDWIDTH,
         frequencies: list[float] | None = None,
     ):
         super().__init__()
@@ -98,7 +108,7 @@ class ChebyshevHammerstein(AbstractResidual):
         self.degrees = [2 * k + 1 for k in range(1, n + 1)]
         pairs = order // 2
         if frequencies is None:
-            frequencies = [math.exp(v) for v in torch.linspace(0.0, math.log(6.0), max(pairs, 1)).tolist()][:pairs]
+            frequencies = _default_frequencies(order)
         if len(frequencies) != pairs or not all(0 < f < bandwidth for f in frequencies):
             raise ValueError(
                 f"order {order} needs {pairs} initial frequencies in (0, bandwidth={bandwidth}), got {frequencies}"
@@ -109,6 +119,18 @@ class ChebyshevHammerstein(AbstractResidual):
         self.frequency_logit = nn.Parameter(torch.logit(torch.tensor(frequencies, **f64) / bandwidth))
         self.numerator = nn.Parameter(torch.zeros(n, order, **f64))
         self.direct = nn.Parameter(torch.zeros(n, **f64))
+
+    @classmethod
+    def for_sampling(cls, alpha: float, h: float) -> ChebyshevHammerstein:
+        r"""The default residual with every rate (decay, margin, bandwidth, initial frequencies) scaled by
+        $s = \min\big(1, \pi / (2 h \Omega)\big)$: the default band where the sampling interval ``h`` (s) resolves
+        it, else the same band shrunk until $\Omega$ is half the Nyquist frequency $\pi/h$. Beyond Nyquist every
+        pole is faster than one sample, the filter states nearly repeat the features, and the nearly collinear
+        regressors fit the training record with coefficients that cancel there and not on the next record (the
+        cascaded tanks, sampled every 4 s)."""
+        scale = min(1.0, math.pi / (2 * h * BANDWIDTH))
+        return cls(alpha, decay=scale * DECAY, min_decay=scale * MIN_DECAY, bandwidth=scale * BANDWIDTH,
+                   frequencies=[scale * f for f in _default_frequencies(ORDER)])
 
     # -- structure ---------------------------------------------------------------------------
     def denominator(self) -> torch.Tensor:
