@@ -280,20 +280,22 @@ def discover_missing_force(
             return None, None, "no term of the closed form is determined by the records"
         return score, *_judge(baseline, library_best, score, rule)
 
+    proposed = [pairs[i] for i in chosen]  # the regression's support
+
     def screened(base: list[tuple[str, str]], starts: list[float]) -> list[tuple[ModelScore | None, bool | None, str]]:
         """``base`` (fitted coefficients ``starts``) plus each usable term not in it, fitted with the physics for
         :data:`SCREEN_NFEV` evaluations; the :data:`SCREEN` that fit the training records best, refitted in full."""
         short = {}
         for extra in (pairs[i] for i in usable if pairs[i] not in base):
             kept = base + [extra]
-            if kept != [pairs[i] for i in chosen]:  # that support is refitted already
+            if kept != proposed:  # that support is refitted already
                 fitted = fit_closed_form(physics, kept, first_order(kept) or [*starts, 0.0], data.widths, train,
                                          SCREEN_NFEV, initial_state)
                 if fitted is not None:
                     short[extra] = fitted[1].mismatch
         return [refitted(base + [extra]) for extra in sorted(short, key=short.get)[:SCREEN]]
 
-    candidates = [refitted([pairs[i] for i in chosen])]
+    candidates = [refitted(proposed)]
     sloppy = Q.shape[1] < J.shape[1]  # a combination of the physics' parameters that the records do not determine
     search = candidates[0][1] is None or sloppy  # first order may be misled: a search by refits
     if search:

@@ -204,6 +204,8 @@ def fit_physics(
         return least_squares(fun, x, jac=lambda x: evaluate(x)[1], bounds=(lower, upper), method="trf",
                              x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
 
+    most_stable = STIFF_SUBSTEPS if switch else MAX_SUBSTEPS  # beyond, the default solver goes on with TR-BDF2
+
     def outputs(residual: np.ndarray) -> list[torch.Tensor]:
         """Each record's output (time, n_output) from the residual $r = (y - \\hat y)/\\|y\\|$."""
         parts = (torch.from_numpy(residual) * scale).split([y.numel() for y in targets])
@@ -213,11 +215,10 @@ def fit_physics(
         """The step check's solver at ``x`` (the model set to ``x`` first): the whole check at an optimum, only the
         step's stability at the start (a start's step error only delays the fit, whose optimum is checked)."""
         residual = evaluate(x)[0]
-        most = STIFF_SUBSTEPS if switch else MAX_SUBSTEPS
         try:
             if not optimum:
-                return stable_solver(physics, solver, records, starts(x), most)
-            return resolved_solver(physics, solver, records, starts(x), float(np.linalg.norm(residual)), most,
+                return stable_solver(physics, solver, records, starts(x), most_stable)
+            return resolved_solver(physics, solver, records, starts(x), float(np.linalg.norm(residual)), most_stable,
                                    outputs(residual))
         except ResolutionError:
             if not switch or isinstance(solver, TRBDF2):
