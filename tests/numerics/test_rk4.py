@@ -16,7 +16,8 @@ import torch
 from scipy.integrate import solve_ivp
 
 from torchpaml import Dopri5, RK4
-from torchpaml import CubicStiffness, multisine, Oscillator, simulate, SimulationError, time_grid, WarmStart
+from torchpaml import (CubicStiffness, multisine, Oscillator, QuadraticDamping, simulate, SimulationError, time_grid,
+                       WarmStart)
 
 
 def _duffing(zeta=0.2, k3=2.0):
@@ -169,6 +170,30 @@ def test_unstable_parameters_raise_a_simulation_error(drive):
     unstable = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(-5.0)  # softening: escapes to infinity
     with pytest.raises(SimulationError, match="blew up"), torch.no_grad():
         simulate(unstable, t, 3 * u, solver=RK4())
+
+
+def test_a_blow_up_late_in_a_long_record_is_reported_from_newtons_settled_starts(monkeypatch):
+    """Negative quadratic damping is harmless at small speeds and runs away at large ones: a drive that grows only in
+    the last tenth blows the solution up there. Newton settles the starts up to it and raises at once; before, it
+    lengthened the segments (x8 each time) until one sequential segment reached the blow-up."""
+    import torchpaml._simulate.shooting as shooting
+
+    layouts = []
+
+    class Counted(shooting._Layout):
+        def __init__(self, *args, **kwargs):
+            layouts.append(args[3])
+            super().__init__(*args, **kwargs)
+
+    monkeypatch.setattr(shooting, "_Layout", Counted)
+    t = time_grid(2000.0, 0.1)
+    u = multisine(t, 0.2, [0.05, 0.1, 0.2, 0.3], seed=0) * (1 + 20 * (t > 1800))[None, :, None]
+    runaway = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + QuadraticDamping(-0.5)
+    with pytest.raises(SimulationError, match="blew up") as error, torch.no_grad():
+        simulate(runaway, t, u, solver=RK4(substeps=1))
+    assert len(layouts) == 1
+    blown = float(str(error.value).split("t = ")[1].split(" s")[0])
+    assert 1800 <= blown <= 2000
 
 
 def test_a_warm_start_converges_to_the_same_solution(drive):
