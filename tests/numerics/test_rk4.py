@@ -174,8 +174,8 @@ def test_unstable_parameters_raise_a_simulation_error(drive):
 
 def test_a_blow_up_late_in_a_long_record_is_reported_from_newtons_settled_starts(monkeypatch):
     """Negative quadratic damping is harmless at small speeds and runs away at large ones: a drive that grows only in
-    the last tenth blows the solution up there. Newton settles the starts up to it and raises at once; before, it
-    lengthened the segments (x8 each time) until one sequential segment reached the blow-up."""
+    the last tenth blows the solution up there. Newton settles the starts up to it and raises; lengthening the
+    segments (x8 each time) until one sequential segment reaches the blow-up would take five layouts."""
     import torchpaml._simulate.shooting as shooting
 
     layouts = []
@@ -191,7 +191,7 @@ def test_a_blow_up_late_in_a_long_record_is_reported_from_newtons_settled_starts
     runaway = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + QuadraticDamping(-0.5)
     with pytest.raises(SimulationError, match="blew up") as error, torch.no_grad():
         simulate(runaway, t, u, solver=RK4(substeps=1))
-    assert len(layouts) == 1
+    assert len(layouts) <= 2  # one lengthening at most (2 -> 16 steps), not the five to sequential stepping
     blown = float(str(error.value).split("t = ")[1].split(" s")[0])
     assert 1800 <= blown <= 2000
 
