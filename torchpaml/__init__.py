@@ -50,6 +50,7 @@ from torchpaml._fit import (
     fit_residual,
     reestimate_shift,
 )
+from torchpaml._fit.budget import Budget, OverBudget
 from torchpaml._fit.uncertainty import IdentifiabilityWarning, Uncertainty
 from torchpaml._metrics import fit_percent, mismatch, rmse
 from torchpaml._parameters import Interval, PhysicalParameter, Positive, Real, register_parameters
@@ -175,6 +176,8 @@ __all__ = [
     # fitting
     "fit_physics",
     "PhysicsEstimate",
+    "Budget",
+    "OverBudget",
     "Uncertainty",
     "IdentifiabilityWarning",
     "estimate_initial_state",

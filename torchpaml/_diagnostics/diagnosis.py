@@ -26,6 +26,7 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -42,6 +43,7 @@ from torchpaml._diagnostics.validity import AmplitudeBins, error_by_amplitude
 from torchpaml._errors import DataError
 from torchpaml._grid import uniform_step
 from torchpaml._simulate.records import simulate_record
+from torchpaml._fit.budget import REFIT_BUDGET
 from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters
@@ -128,6 +130,12 @@ class Diagnosis:
             found = (f"no missing effect found among {len(self.ranking.entries)} candidates{detail}. Validation "
                      f"mismatch {100 * base.nrmse_validation:.2f} %.")
         verdict = f"{found} Chebyshev residual on the final model: {self.hybrids[-1].adequacy.message.rstrip('.')}."
+        undecided = [(ranking.baseline.name, e) for ranking in self.ladder.rankings for e in ranking.undecided]
+        if undecided:
+            verdict += (" Undecided (their refits stopped over budget): "
+                        + "; ".join(f"{e.effect} on {name} ({e.undecided:.1f} s)" for name, e in undecided)
+                        + ". To decide them, give the refits more time: --refit_budget (refit_budget=, default "
+                        f"{REFIT_BUDGET:g} times the rung's fit) or --budget (budget=, seconds for the whole diagnosis).")
         if self.discovery is not None:
             judged = "recommended" if self.discovery.recommended else "not recommended"
             verdict += f" Discovered force: {self.discovery.text} ({judged}: {self.discovery.reason})."
@@ -178,6 +186,7 @@ def diagnose(
     alpha: float | None = None,
     discover: bool = False,
     terms: Sequence[str] = (),
+    budget: float | None = None,
     **ranking_options,
 ) -> Diagnosis:
     """Run the whole diagnosis (module docstring).
@@ -191,8 +200,14 @@ def diagnose(
         discover: also discover a force outside the library (module docstring, step 4).
         terms: the user's own terms for the discovery, sympy strings over the physics' variables
             (:class:`~torchpaml._physics.TermLibrary`), e.g. ``["x**2*sign(v)"]``.
-        ranking_options: forwarded to :func:`~torchpaml._diagnostics.rank_missing_effects`.
+        budget: seconds for the ladder's refits, counted from the call: a refit still running then stops, and those
+            not started are not run; each is reported undecided (``EffectEvidence.undecided``, named in the
+            verdict). Default: none; each refit keeps its own budget (``refit_budget``, :mod:`torchpaml._fit.budget`).
+        ranking_options: forwarded to :func:`~torchpaml._diagnostics.rank_missing_effects` (``refit_budget`` among them).
     """
+    if budget is not None and not budget > 0:
+        raise ValueError(f"budget is the seconds the diagnosis' refits may take, > 0; got {budget}")
+    deadline = None if budget is None else time.perf_counter() + budget
     train = [train] if isinstance(train, Experiment) else list(train)
     validation = [validation] if isinstance(validation, Experiment) else list(validation)
     most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
@@ -208,7 +223,7 @@ def diagnose(
                             f"parameters (the physics' and a candidate's) and judge the fit; give records of more "
                             f"than {2 * most} samples, or fix parameters")
         record.require_uniform("diagnose (its Chebyshev-Hammerstein residual, an exactly discretised filter)")
-    ladder = model_ladder(physics, candidates, train, validation, **ranking_options)
+    ladder = model_ladder(physics, candidates, train, validation, deadline=deadline, **ranking_options)
     base = ladder.steps[0]
     record = validation[0]
     y_model = base.validation_outputs[0]

@@ -45,6 +45,7 @@ import copy
 import functools
 import logging
 import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Literal
@@ -55,6 +56,7 @@ from torch import nn
 from torchpaml._data import Experiment
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._errors import ResolutionError, SimulationError
+from torchpaml._fit.budget import REFIT_BUDGET, Budget, OverBudget
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import unphysical_values
@@ -65,8 +67,8 @@ from torchpaml._simulate.probes import Secant, TangentLinear, assigned
 from torchpaml._simulate.warm import WarmStart
 from torchpaml._physics.effects import AbstractEffect
 
-__all__ = ["EffectEvidence", "ModelScore", "REFIT_CRITERION_STEP", "Ranking", "rank_missing_effects", "refit_effect",
-           "score_model"]
+__all__ = ["EffectEvidence", "GATE_MARGIN", "ModelScore", "REFIT_CRITERION_STEP", "Ranking", "rank_missing_effects",
+           "refit_effect", "score_model"]
 
 log = logging.getLogger(__name__)
 
@@ -74,6 +76,9 @@ log = logging.getLogger(__name__)
 #: is this over n): a hundredth of the threshold that decides. The effect that the ladder adds is fitted to the
 #: last digits as the next rung's baseline.
 REFIT_CRITERION_STEP = 0.1
+#: A candidate is refitted only if its first-order score, multiplied by this margin, could pass the rule
+#: (:func:`_cannot_pass`): a refit may explain more than the first-order step, by this factor at most.
+GATE_MARGIN = 4.0
 
 
 @dataclass
@@ -106,7 +111,9 @@ class EffectEvidence:
     ``improvement`` is the baseline's criterion minus the candidate's (positive: better). ``failure``: why a
     shortlisted refit has no result (its optimum fails the step check, :mod:`torchpaml._fit.resolution`, or its
     simulation blows up: a lag driven towards 0 is a rate beyond what RK4 integrates), or why
-    the candidate was not scored (its own states blow up at zero strength).
+    the candidate was not scored (its own states blow up at zero strength). ``refit_reason`` says why the
+    candidate was or was not refitted; ``undecided`` is the seconds its refit ran before it stopped over its budget
+    (:mod:`torchpaml._fit.budget`; 0 where the diagnosis' budget was spent before it started), else ``None``.
     """
 
     effect: str
@@ -118,6 +125,8 @@ class EffectEvidence:
     improvement: float | None = None
     unphysical: list[str] = field(default_factory=list)
     failure: str | None = None
+    refit_reason: str = ""
+    undecided: float | None = None
 
 
 @dataclass
@@ -136,6 +145,11 @@ class Ranking:
         """The best physical refitted candidate if :attr:`rule` accepts it over the baseline, else ``None``."""
         best = next((e for e in self.entries if e.refit is not None and not e.unphysical), None)
         return best if best is not None and self.rule.accepts(self.baseline, best.refit) else None
+
+    @property
+    def undecided(self) -> list[EffectEvidence]:
+        """The candidates whose refit stopped over its budget: the ranking cannot tell whether they would win."""
+        return [e for e in self.entries if e.undecided is not None]
 
 
 def as_records(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]:
@@ -284,8 +298,8 @@ RESCUE_FRACTIONS = (0.5, 0.25)
 
 
 def refit_effect(extended, name: str, start: float, train: list[Experiment], max_nfev: int, initial_state: str,
-                 baseline: PhysicsEstimate | None = None, move: torch.Tensor | None = None, ftol: float = 1e-10
-                 ) -> PhysicsEstimate:
+                 baseline: PhysicsEstimate | None = None, move: torch.Tensor | None = None, ftol: float = 1e-10,
+                 budget: Budget | None = None) -> PhysicsEstimate:
     """Fit ``extended`` from the first-order start (:func:`_first_order`): the strength ``name`` at ``start`` and,
     given the ``baseline`` fit, its unknowns (raw parameters, then estimated initial states) moved by ``move``.
 
@@ -295,10 +309,12 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     or blows up the simulation, down to 0. Where that fit ends worse than the baseline on the training
     records (a poor local optimum: the baseline, the effect at 0, fits better), half the move, then a
     quarter (:data:`RESCUE_FRACTIONS`), is tried as the start in the same way, and the better fit is kept.
-    ``ftol`` goes to :func:`~torchpaml._fit.fit_physics`.
+    ``ftol`` and ``budget`` (shared by every fit tried here; :class:`~torchpaml._fit.budget.OverBudget` ends the
+    refit) go to :func:`~torchpaml._fit.fit_physics`.
     """
     warm = [WarmStart() for _ in train]  # the check's simulations start the fit's first Newton solves
-    fit = functools.partial(fit_physics, extended, train, max_nfev=max_nfev, initial_state=initial_state, ftol=ftol)
+    fit = functools.partial(fit_physics, extended, train, max_nfev=max_nfev, initial_state=initial_state, ftol=ftol,
+                            budget=budget)
     states = None if baseline is None or initial_state != "estimate" else baseline.initial_states
     if baseline is None or move is None:
         return _halving_strength(extended, name, start, fit, states)
@@ -372,21 +388,90 @@ def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tens
     return mismatch(torch.cat([r.y.flatten() for r in train]), torch.cat(outputs))
 
 
-def _free_shape(score: ModelScore, effect: str, train: list[Experiment], validation: list[Experiment],
-                rule: SelectionRule, max_nfev: int, initial_state: str, ftol: float) -> ModelScore:
-    """``score``'s model refitted with the effect's shape parameters freed, if that beats it by the rule's threshold."""
-    shape = score.model.effects[effect].shape
+def _free_shape(entry: EffectEvidence, train: list[Experiment], validation: list[Experiment], rule: SelectionRule,
+                max_nfev: int, initial_state: str, ftol: float, budget: Budget) -> None:
+    """``entry``'s refit replaced by its model refitted with the effect's shape parameters freed, if that beats it by
+    the rule's threshold; a shape refit over ``budget`` leaves the refit and says so in ``entry.refit_reason``."""
+    score = entry.refit
+    shape = score.model.effects[entry.effect].shape
     if not shape:
-        return score
-    freed = copy.deepcopy(score.model).set_learnable(*(f"{effect}.{name}" for name in shape))
+        return
+    freed = copy.deepcopy(score.model).set_learnable(*(f"{entry.effect}.{name}" for name in shape))
     states = score.train_states if initial_state == "estimate" else None
     try:
         estimate = fit_physics(freed, train, max_nfev=max_nfev, initial_state=initial_state, start_states=states,
-                               ftol=ftol)
+                               ftol=ftol, budget=budget)
+    except OverBudget as over:
+        entry.refit_reason += f"; its shape ({', '.join(shape)}) not freed: over budget ({over.seconds:.1f} s)"
+        return
     except SimulationError:
-        return score
+        return
     candidate = score_model(freed, estimate, validation, rule, initial_state)
-    return candidate if score.criterion - candidate.criterion > rule.threshold else score
+    if score.criterion - candidate.criterion > rule.threshold:
+        entry.refit = candidate
+
+
+def _cannot_pass(score: float, rule: SelectionRule, validation: list[Experiment], extended, base) -> str | None:
+    r"""Why a candidate whose first-order score is ``score`` cannot pass ``rule``, even if its refit explained
+    :data:`GATE_MARGIN` times that share $s$ of the residual's energy; ``None`` where it could.
+
+    At the share $s' = \min(1, M s)$ the mismatch falls by $1 - \sqrt{1 - s'}$ and the criterion on the $n$ validation
+    samples by $-n\ln(1 - s')$ less the penalty of the candidate's parameters: the rule needs ``min_share`` and more
+    than ``threshold``. The score is measured on the training records, the rule on validation: the margin covers
+    both that and what a refit finds beyond the first-order step.
+    """
+    reachable = min(1.0 - 1e-12, GATE_MARGIN * score)
+    share = 1.0 - math.sqrt(1.0 - reachable)
+    samples = sum(r.y.numel() for r in validation)
+    added = len(extended.learnable_names()) - len(base.learnable_names())
+    gain = rule.value(1.0, samples, 0) - rule.value(1.0 - reachable, samples, added)
+    at = f"its first-order score {score:.3g} predicts at most"
+    if share < rule.min_share:
+        return (f"{at} a {100 * share:.2g} % fall of the validation mismatch, even at {GATE_MARGIN:g}x the score "
+                f"(the rule needs {100 * rule.min_share:g} %)")
+    if gain <= rule.threshold:
+        return f"{at} a criterion gain of {gain:.1f}, even at {GATE_MARGIN:g}x the score (the rule needs {rule.threshold:g})"
+    return None
+
+
+class _Refits:
+    """The shortlist's refits on one rung: each from its first-order start (:func:`refit_effect`), within its budget
+    (``template``'s limits, counted from the refit's own start), scored on validation."""
+
+    def __init__(self, name: str, train: list[Experiment], validation: list[Experiment], fit: PhysicsEstimate,
+                 baseline: ModelScore, rule: SelectionRule, initial_state: str, max_nfev: int, template: Budget):
+        self.name, self.train, self.validation, self.fit, self.baseline = name, train, validation, fit, baseline
+        self.rule, self.initial_state, self.max_nfev, self.template = rule, initial_state, max_nfev, template
+        self.ftol = REFIT_CRITERION_STEP / sum(r.y.numel() for r in train)
+
+    def budget(self, effect: str) -> Budget:
+        """A fresh budget for the refit of ``effect``, with the rung's limits."""
+        t = self.template
+        return Budget(f"refitting {self.name} + {effect}", t.seconds, t.evaluations, t.deadline)
+
+    def run(self, entry: EffectEvidence, extended, strength: str, move: torch.Tensor) -> None:
+        """Refit ``entry``'s model and record in ``entry`` the result, the failure, or that it is undecided."""
+        budget = self.budget(entry.effect)
+        if budget.expired:
+            entry.undecided, entry.refit_reason = 0.0, "undecided: the diagnosis' budget was spent before its refit"
+            return
+        log.info("refitting %s + %s", self.name, entry.effect)
+        try:
+            refit = refit_effect(extended, strength, entry.first_order_strength, self.train, self.max_nfev,
+                                 self.initial_state, self.fit, move, self.ftol, budget)
+        except OverBudget as over:
+            entry.undecided, entry.refit_reason = over.seconds, f"undecided: over budget ({over.seconds:.1f} s)"
+            log.info("%s + %s undecided: over budget (%.1f s)", self.name, entry.effect, over.seconds)
+            return
+        except ResolutionError as error:
+            entry.failure = f"refit unresolved: {error}"
+            return
+        except SimulationError as error:  # the refit drove a rate of the effect beyond what RK4 integrates
+            entry.failure = f"refit blew up: {error}; parameters {extended.physical_parameters()}"
+            return
+        entry.refit = score_model(extended, refit, self.validation, self.rule, self.initial_state)
+        entry.improvement = self.baseline.criterion - entry.refit.criterion
+        entry.unphysical = unphysical_values(entry.refit.model._rows())
 
 
 def rank_missing_effects(
@@ -401,6 +486,8 @@ def rank_missing_effects(
     start_states: Sequence[torch.Tensor] | None = None,
     probe: float = 1e-4,
     max_nfev: int = 40,
+    refit_budget: float = REFIT_BUDGET,
+    deadline: float | None = None,
 ) -> Ranking:
     """Rank ``candidates`` as the effect missing from ``physics`` (module docstring).
 
@@ -420,6 +507,9 @@ def rank_missing_effects(
             states (default rest).
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
+        refit_budget: each refit may take this many times the rung's own fit, in seconds and in evaluations
+            (:mod:`torchpaml._fit.budget`); one over it is reported undecided (``EffectEvidence.undecided``).
+        deadline: a ``time.perf_counter()`` time by which every refit must end (the diagnosis' ``budget``).
     """
     train, validation = as_records(train), as_records(validation)
     names = [c.name for c in candidates]
@@ -438,7 +528,9 @@ def rank_missing_effects(
                          + ". Give candidates written for this physics (`candidates:` in a --config file)")
     base = copy.deepcopy(physics)
     log.info("fitting %s on %d samples", base.display_name, sum(len(r.t) for r in train))
+    began = time.perf_counter()
     fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states)
+    seconds = time.perf_counter() - began
     rule = rule or SelectionRule()
     baseline = score_model(base, fit, validation, rule, initial_state)
     if not candidates:
@@ -459,33 +551,28 @@ def rank_missing_effects(
             except SimulationError as error:  # its own states blow up at zero strength: a stiff start
                 failure = f"not scored: the model blows up at zero strength from {setting or 'its defaults'}: {error}"
         if best is None:
-            entries.append(EffectEvidence(candidate.name, candidate.equation, 0.0, 1, 0.0, failure=failure))
+            entries.append(EffectEvidence(candidate.name, candidate.equation, 0.0, 1, 0.0, failure=failure,
+                                          refit_reason="not refitted: not scored"))
             continue
         extended, (score, order, start, move) = best
         entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start))
         extended_models[candidate.name] = (extended, strength, move)
     by_score = sorted(entries, key=lambda e: -e.score)
-    ftol = REFIT_CRITERION_STEP / sum(r.y.numel() for r in train)
-    for entry in [e for e in by_score if e.effect in extended_models][:shortlist]:
-        log.info("refitting %s + %s", base.display_name, entry.effect)
-        extended, strength, move = extended_models[entry.effect]
-        try:
-            refit = refit_effect(extended, strength, entry.first_order_strength, train, max_nfev, initial_state, fit,
-                                 move, ftol)
-        except ResolutionError as error:
-            entry.failure = f"refit unresolved: {error}"
+    refits = _Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, max_nfev,
+                     Budget(base.display_name, refit_budget * seconds, refit_budget * fit.evaluations,
+                            math.inf if deadline is None else deadline))
+    for rank, entry in enumerate(e for e in by_score if e.effect in extended_models):
+        why_not = f"outside the shortlist of the {shortlist} best scores" if rank >= shortlist else \
+            _cannot_pass(entry.score, rule, validation, extended_models[entry.effect][0], base)
+        if why_not is not None:
+            entry.refit_reason = f"not refitted: {why_not}"
             continue
-        except SimulationError as error:  # the refit drove a rate of the effect beyond what RK4 integrates
-            entry.failure = f"refit blew up: {error}; parameters {extended.physical_parameters()}"
-            continue
-        entry.refit = score_model(extended, refit, validation, rule, initial_state)
-        entry.improvement = baseline.criterion - entry.refit.criterion
-        entry.unphysical = unphysical_values(entry.refit.model._rows())
+        entry.refit_reason = f"refitted: score rank {rank + 1} of the shortlist of {shortlist}, and it could pass the rule"
+        refits.run(entry, *extended_models[entry.effect])
     refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
     if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
         best = refitted[0]
-        best.refit = _free_shape(best.refit, best.effect, train, validation, rule, max_nfev,
-                                 initial_state, ftol)
+        _free_shape(best, train, validation, rule, max_nfev, initial_state, refits.ftol, refits.budget(best.effect))
         best.improvement = baseline.criterion - best.refit.criterion
         best.unphysical = unphysical_values(best.refit.model._rows())
     rest = [e for e in by_score if e.refit is None]

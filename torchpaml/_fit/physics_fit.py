@@ -28,6 +28,8 @@ returns the solver it resolved (``PhysicsEstimate.solver``) and sets it on the m
 from __future__ import annotations
 
 import copy
+import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
@@ -38,6 +40,7 @@ from scipy.optimize import least_squares
 
 from torchpaml._data import Experiment
 from torchpaml._errors import ResolutionError, SimulationError
+from torchpaml._fit.budget import Budget
 from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solver
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
 from torchpaml._parameters import record_uncertainty
@@ -113,6 +116,7 @@ def fit_physics(
     max_nfev: int = 60,
     ftol: float = 1e-10,
     solver: Solver | None = None,
+    budget: Budget | None = None,
 ) -> PhysicsEstimate:
     r"""Fit the learnable physical parameters of ``physics`` in place to the records (module docstring).
 
@@ -134,6 +138,8 @@ def fit_physics(
             ``Auto()``/``None`` (the default): the model's own solver where it is one of those, else RK4 at one
             substep, and TR-BDF2 where RK4 cannot resolve the optimum. The step check raises the substeps where
             the fitted output depends on the step (:mod:`torchpaml._fit.resolution`).
+        budget: a :class:`~torchpaml._fit.budget.Budget`: progress lines while the fit runs, and
+            :class:`~torchpaml._fit.budget.OverBudget` raised past its limit (default: neither).
     """
     if initial_state not in ("rest", "estimate"):
         raise ValueError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
@@ -155,7 +161,7 @@ def fit_physics(
     raw = list(raw_parameters(physics, names).values())
     targets = [r.y[None] for r in records]
     scale = float(torch.sqrt(sum(torch.sum(y**2) for y in targets)))
-    count = {"simulations": 0}
+    count = {"simulations": 0, "cost": math.inf}  # the lowest cost so far
     memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
     warm = [WarmStart() for _ in records] if warm is None else list(warm)  # each record's last solution starts the next solve
 
@@ -169,23 +175,33 @@ def fit_physics(
         key = x.tobytes()
         if key not in memo:
             count["simulations"] += 1
-            with torch.no_grad():
-                for tensor, value in zip(raw, x, strict=False):
-                    tensor.copy_(torch.tensor(value, dtype=torch.float64))
-            parts = [record_jacobian(physics, names, r, x0, warm=w, initial_state=estimate_x0, solver=solver)
-                     for r, w, x0 in zip(records, warm, starts(x), strict=True)]
-            residual = torch.cat([(y - y_hat).flatten() for y, (y_hat, _) in zip(targets, parts, strict=True)]) / scale
-            columns = []
-            for i, (_, J) in enumerate(parts):  # each record's x0 columns go to its own block
-                J = J.reshape(-1, J.shape[-1])
-                block = torch.zeros(len(J), len(x) - p, dtype=torch.float64)
-                if estimate_x0:
-                    block[:, i * n_state:(i + 1) * n_state] = J[:, p:]
-                columns.append(torch.cat([J[:, :p], block], dim=1))
-            jacobian = -torch.cat(columns) / scale
+            began = time.perf_counter()
             memo.clear()
-            memo[key] = residual.numpy(), jacobian.numpy()
+            try:
+                memo[key] = computed(x)
+                count["cost"] = min(count["cost"], 0.5 * float(np.sum(memo[key][0] ** 2)))
+            finally:  # a blow-up's time counts too
+                if budget is not None:
+                    budget.check(count["simulations"], count["cost"], time.perf_counter() - began)
         return memo[key]
+
+    def computed(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual and Jacobian at ``x``, computed."""
+        with torch.no_grad():
+            for tensor, value in zip(raw, x, strict=False):
+                tensor.copy_(torch.tensor(value, dtype=torch.float64))
+        parts = [record_jacobian(physics, names, r, x0, warm=w, initial_state=estimate_x0, solver=solver)
+                 for r, w, x0 in zip(records, warm, starts(x), strict=True)]
+        residual = torch.cat([(y - y_hat).flatten() for y, (y_hat, _) in zip(targets, parts, strict=True)]) / scale
+        columns = []
+        for i, (_, J) in enumerate(parts):  # each record's x0 columns go to its own block
+            J = J.reshape(-1, J.shape[-1])
+            block = torch.zeros(len(J), len(x) - p, dtype=torch.float64)
+            if estimate_x0:
+                block[:, i * n_state:(i + 1) * n_state] = J[:, p:]
+            columns.append(torch.cat([J[:, :p], block], dim=1))
+        jacobian = -torch.cat(columns) / scale
+        return residual.numpy(), jacobian.numpy()
 
     def fun(x: np.ndarray) -> np.ndarray:
         try:

@@ -110,12 +110,12 @@ def _discovery_section(found: dict | None) -> str:
 def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
     base = content["baseline"]
     ranking = _table(
-        ["rank", "effect", "score", "validation %", "improvement", "parameters"],
-        [[i, e["effect"], f"{e['score']:.3f}", _pct(e["nrmse_validation"]),
+        ["rank", "effect", "score", "validation %", "improvement", "parameters", "refit"],
+        [[i, e["effect"], f"{e['score']:.3f}", "undecided" if e["undecided"] is not None else _pct(e["nrmse_validation"]),
           "" if e["improvement"] is None else f"{e['improvement']:.1f}",
           ", ".join(f"{k}={v:.4g}" for k, v in e["parameters"].items())
           + "".join(f" (unphysical: {note})" for note in e["unphysical"])
-          + (f" ({e['failure']})" if e["failure"] else "")]
+          + (f" ({e['failure']})" if e["failure"] else ""), e["refit_reason"]]
          for i, e in enumerate(content["ranking"], 1)],
     )
     ladder = _table(["step", "model", "train %", "validation %"],
@@ -127,6 +127,10 @@ def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
                       _pct(h["physics_nrmse_validation"]), _pct(h["nrmse_validation"]), h["message"]]
                      for h in content["hybrid"]])
     discovery = _discovery_section(content["discovery"])
+    if content["undecided"]:
+        ranking += "<p><b>Undecided</b> (refits stopped over budget; the verdict names the option that decides them):</p>"
+        ranking += _table(["model", "effect", "seconds"],
+                          [[u["model"], u["effect"], f"{u['seconds']:.1f}"] for u in content["undecided"]])
     images = "".join(f'<h3>{name}</h3><img src="figures/{name}.png" alt="{name}">' for name in figures)
     final = html.escape(diagnosis.ladder.final.model.describe())
     warning = diagnosis.ladder.final.warning

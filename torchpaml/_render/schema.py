@@ -30,7 +30,7 @@ def evidence_to_dict(evidence: EffectEvidence) -> dict:
         "criterion": None if refit is None else refit.criterion,
         "improvement": evidence.improvement, "parameters": {} if refit is None else refit.parameters,
         "uncertainty": {} if refit is None else _errors(refit.uncertainty), "unphysical": evidence.unphysical,
-        "failure": evidence.failure,
+        "failure": evidence.failure, "refit_reason": evidence.refit_reason, "undecided": evidence.undecided,
     }
 
 
@@ -127,6 +127,8 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict:
         "criterion": {"name": ranking.rule.criterion, "threshold": ranking.rule.threshold,
                       "min_share": ranking.rule.min_share},
         "ladder": ladder_to_dicts(diagnosis.ladder),
+        "undecided": [{"model": ranking.baseline.name, "effect": e.effect, "seconds": e.undecided,
+                       "reason": e.refit_reason} for ranking in diagnosis.ladder.rankings for e in ranking.undecided],
         "where_it_fails": {
             "residual_autocorrelation_lags_outside": diagnosis.residuals.autocorrelation_outside.tolist(),
             "input_cross_correlation_lags_outside": diagnosis.residuals.cross_correlation_outside.tolist(),

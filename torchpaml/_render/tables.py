@@ -20,22 +20,24 @@ def comparison_table(comparison: Comparison) -> str:
 
 
 def ranking_table(ranking: Ranking) -> str:
-    """A ranking's baseline, then per candidate: score, validation mismatch, criterion gain and fitted parameters."""
+    """A ranking's baseline, then per candidate: score, validation mismatch, criterion gain, fitted parameters, and
+    why it was or was not refitted."""
     head = (f"baseline {ranking.baseline.name}: train {100 * ranking.baseline.nrmse_train:.2f} %, "
             f"validation {100 * ranking.baseline.nrmse_validation:.2f} %")
     if ranking.skipped:
         head += "\nskipped (do not apply): " + "; ".join(f"{k}: {v}" for k, v in ranking.skipped.items())
     lines = [head, "",
-             f"| rank | effect | score | validation % | Δ{ranking.rule.criterion.upper()} | parameters |",
-             "|---|---|---|---|---|---|"]
+             f"| rank | effect | score | validation % | Δ{ranking.rule.criterion.upper()} | parameters | refit |",
+             "|---|---|---|---|---|---|---|"]
     for i, e in enumerate(ranking.entries, 1):
         refit = e.refit
-        validation = "not refitted" if refit is None else f"{100 * refit.nrmse_validation:.2f}"
+        validation = ("undecided" if e.undecided is not None else "not refitted") if refit is None else \
+            f"{100 * refit.nrmse_validation:.2f}"
         gain = "" if e.improvement is None else f"{e.improvement:.1f}"
         params = "" if refit is None else ", ".join(f"{k}={v:.4g}" for k, v in refit.parameters.items())
         params += "".join(f" **unphysical: {note}**" for note in e.unphysical)
         params += f" **{e.failure}**" if e.failure else ""
-        lines.append(f"| {i} | {e.effect} | {e.score:.3f} | {validation} | {gain} | {params} |")
+        lines.append(f"| {i} | {e.effect} | {e.score:.3f} | {validation} | {gain} | {params} | {e.refit_reason} |")
     return "\n".join(lines)
 
 

@@ -19,6 +19,7 @@ from typing import Literal
 from jsonargparse import ActionConfigFile, ArgumentError, ArgumentParser
 
 from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._fit.budget import REFIT_BUDGET
 from torchpaml.cli.progress import progress_lines
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import EFFECTS, AbstractEffect
@@ -70,13 +71,19 @@ def resolve_models(physics: str | AbstractPhysics, fix: list[str] | None, effect
     return _physics(physics, fix), _candidates(effects, candidates, discover)
 
 
-def check_options(shortlist: int, min_share: float) -> None:
+def check_options(shortlist: int, min_share: float, refit_budget: float = REFIT_BUDGET, budget: float | None = None
+                  ) -> None:
     """Refuse ranking options that cannot work, before any fit."""
     if shortlist < 1:
         raise ValueError(f"--shortlist must be at least 1 (how many best-scored candidates are refitted), "
                          f"got {shortlist}")
     if not 0 <= min_share < 1:
         raise ValueError(f"--min_share is a share of the validation mismatch, in [0, 1); got {min_share}")
+    if not refit_budget > 0:
+        raise ValueError(f"--refit_budget is how many times its rung's fit a refit may take, > 0 (default "
+                         f"{REFIT_BUDGET:g}); got {refit_budget}")
+    if budget is not None and not budget > 0:
+        raise ValueError(f"--budget is the seconds the diagnosis' refits may take, > 0; got {budget}")
 
 
 def diagnose_command(
@@ -95,6 +102,8 @@ def diagnose_command(
     hold: Literal["foh", "zoh"] | None = None,
     discover: bool = False,
     terms: list[str] | None = None,
+    refit_budget: float = REFIT_BUDGET,
+    budget: float | None = None,
     verbose: bool = False,
     quiet: bool = False,
 ) -> dict:
@@ -122,6 +131,9 @@ def diagnose_command(
             rate in the ODE, then its closed form (``discovery.json``, ``discovered_effect.yaml``; any physics).
         terms: the discovery's own terms, sympy strings over the physics' variables (x, v, u for
             second-order physics, else its state names and u), e.g. ``x**2*sign(v)`` (repeat ``--term``).
+        refit_budget: each refit may take this many times its rung's own fit (in seconds, and in evaluations at the
+            refit's own cost); one over it stops and is reported undecided, and the ladder goes on.
+        budget: seconds for all the refits of the diagnosis, counted from its start (default: no limit).
         verbose: print the traceback of an error raised inside your physics (default: one line).
         quiet: no progress lines (by default each stage, the rung, the candidate refitted, the discovery's
             steps, is printed on stderr with the seconds since the start).
@@ -131,11 +143,12 @@ def diagnose_command(
 
     if Path(out).is_file():
         raise ValueError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
-    check_options(shortlist, min_share)
+    check_options(shortlist, min_share, refit_budget, budget)
     model, chosen = resolve_models(physics, fix, effects, candidates, discover)
     diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold, shortlist=shortlist,
                                    rule=SelectionRule(criterion, threshold, min_share),
-                                   initial_state=initial_state, discover=discover, terms=terms or ())
+                                   initial_state=initial_state, discover=discover, terms=terms or (),
+                                   refit_budget=refit_budget, budget=budget)
     path = Path(out) / "diagnosis.json"
     print(ranking_table(diagnosis.ranking))
     print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")

@@ -1,0 +1,90 @@
+r"""A fit's time budget and its progress lines: a long fit never looks like a hang, and never runs away.
+
+A :class:`Budget` is handed to :func:`~torchpaml._fit.fit_physics` (``budget=``), which reports each evaluation
+(a simulation with its Jacobian) to :meth:`Budget.check`. Every :data:`PROGRESS_SECONDS` the budget logs a progress
+line (evaluations, the cost $\tfrac12\|r\|^2$ so far, the seconds spent and allowed); past its limit it raises
+:class:`OverBudget`, which ends the fit. The limit is checked between evaluations, so a fit overruns it by at most
+one evaluation.
+
+The limit is the larger of a time in seconds and a count of evaluations at the fit's own first evaluation's cost,
+capped by an absolute deadline:
+
+$$ \text{limit} = \min\big(\max(T,\; E\,t_1),\; t_{\text{deadline}} - t_{\text{start}}\big). $$
+
+The ranking gives each refit $T = 10\,t_{\text{fit}}$ and $E = 10\,n_{\text{fit}}$ (:data:`REFIT_BUDGET` times its
+rung's own fit, in seconds and in evaluations): a refit may take ten times its rung's fit, counted at the refit's
+own cost per evaluation where the rung's model simulates on a cheaper path (a linear rung's exact path).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+__all__ = ["Budget", "OverBudget", "PROGRESS_SECONDS", "REFIT_BUDGET"]
+
+log = logging.getLogger(__name__)
+
+#: Seconds between a fit's progress lines.
+PROGRESS_SECONDS = 5.0
+#: A ranking's refit may take this many times its rung's own fit (module docstring).
+REFIT_BUDGET = 10.0
+
+
+class OverBudget(RuntimeError):
+    """A fit stopped at its budget; ``seconds`` is the time it had run."""
+
+    def __init__(self, label: str, seconds: float, limit: float):
+        super().__init__(f"{label} stopped over its budget after {seconds:.1f} s (budget {limit:.1f} s)")
+        self.seconds = seconds
+
+
+@dataclass
+class Budget:
+    """The time a fit may take (module docstring), counted from its creation.
+
+    Args:
+        label: what the progress lines call the fit, e.g. ``"refitting Pendulum + dynamic_friction"``.
+        seconds: $T$, the limit in seconds (default none).
+        evaluations: $E$, the limit in evaluations at the cost of the first one (default none).
+        deadline: an absolute ``time.perf_counter()`` by which the fit must end (default none).
+    """
+
+    label: str
+    seconds: float = math.inf
+    evaluations: float = math.inf
+    deadline: float = math.inf
+    started: float = field(default_factory=time.perf_counter, init=False)
+    _first: float | None = field(default=None, init=False, repr=False)
+    _reported: float = field(default=0.0, init=False, repr=False)
+
+    @property
+    def elapsed(self) -> float:
+        """Seconds since the budget was created."""
+        return time.perf_counter() - self.started
+
+    @property
+    def limit(self) -> float:
+        """The limit in seconds; before the first evaluation, $T$ alone (capped by the deadline)."""
+        per_evaluation = math.inf if self.evaluations == math.inf else self.evaluations * (self._first or 0.0)
+        return min(max(self.seconds, per_evaluation), self.deadline - self.started)
+
+    @property
+    def expired(self) -> bool:
+        """Whether the deadline has passed (checked before a fit starts)."""
+        return time.perf_counter() >= self.deadline
+
+    def check(self, evaluations: int, cost: float, evaluation_seconds: float) -> None:
+        """Report an evaluation: log progress every :data:`PROGRESS_SECONDS`, raise :class:`OverBudget` past the limit."""
+        if self._first is None:
+            self._first = evaluation_seconds
+        elapsed = self.elapsed
+        limit = self.limit
+        if elapsed - self._reported >= PROGRESS_SECONDS:
+            self._reported = elapsed
+            allowed = "" if limit == math.inf else f" of {limit:.0f} s"
+            log.info("%s: %d evaluations, cost %.6g, %.0f s%s", self.label, evaluations, cost, elapsed, allowed)
+        if elapsed > limit:
+            raise OverBudget(self.label, elapsed, limit)
