@@ -128,3 +128,21 @@ def test_fleet_refuses_bad_input_before_starting_ray(tmp_path, monkeypatch, caps
         main(["fleet", "--units", str(units), "--physics", physics, "--out", str(tmp_path / "out"), "--quiet"])
     assert exit_.value.code == 2
     assert re.search(f"torchpaml fleet: error: .*{message}", capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--refit_budget", "0", "--refit_budget is how many times its rung's fit a refit may take, > 0"),
+    ("--budget", "-5", "--budget is the seconds the diagnosis' refits may take, > 0"),
+])
+def test_diagnose_refuses_a_budget_that_allows_nothing_before_any_fit(tmp_path, monkeypatch, capsys, option, value,
+                                                                       message):
+    from torchpaml.cli import main
+
+    record = _write(tmp_path, "t,u,y\n" + "".join(f"{i},{i % 3},{i % 2}\n" for i in range(50)))
+    monkeypatch.setattr(sys, "argv", ["torchpaml"])
+    with pytest.raises(SystemExit) as exit_:
+        main(["diagnose", "--data", str(record), "--validation", str(record), "--out", str(tmp_path / "out"),
+              option, value, "--quiet"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1, err

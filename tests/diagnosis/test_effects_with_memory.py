@@ -4,9 +4,12 @@ The hidden-effect oscillator (``test_hidden_effects.py``) with a 6-sample input 
 for training and validation (the regime where the residual, a filter of the input, generalises).
 """
 
+import math
+
 import torch
 
 from torchpaml import TRBDF2
+from torchpaml._diagnostics import ranking as ranking_module
 
 from torchpaml import (ConstantForce, InputLag, QuadraticStiffness, Simulated, default_effects, diagnose,
                        rank_missing_effects)
@@ -38,12 +41,16 @@ def test_with_the_lag_among_the_candidates_the_ladder_adds_it_and_the_caveat_goe
     assert not diagnosis.hybrids[-1].adequacy.covering
 
 
-def test_a_lag_the_data_do_not_have_is_a_failed_refit_not_a_failed_diagnosis():
-    """On the oscillator with its constant force already found, the data hold no lag: its refit drives tau
-    towards 0, a rate far beyond what RK4's step integrates. The fit's stability check hands it to the implicit
-    TR-BDF2, the refit improves nothing and is not recommended, and the ranking goes on."""
+def test_a_lag_the_data_do_not_have_is_a_failed_refit_not_a_failed_diagnosis(monkeypatch):
+    """On the oscillator with its constant force already found, the data hold no lag: its first-order score
+    cannot pass the rule, so it is not refitted. Refitted all the same (the gate opened), it drives tau towards 0,
+    a rate far beyond what RK4's step integrates: the fit's stability check hands it to the implicit TR-BDF2, the
+    refit improves nothing and is not recommended, and the ranking goes on."""
     train, validation, _ = records(truth("constant_force", 0.5), 1.0)
     physics_with_force = (physics() + ConstantForce()).assign(**{"constant_force.f0": 0.5})
+    gated = rank_missing_effects(physics_with_force, [InputLag()], train, validation)
+    assert gated.entries[0].refit is None and "first-order score" in gated.entries[0].refit_reason
+    monkeypatch.setattr(ranking_module, "GATE_MARGIN", math.inf)
     ranking = rank_missing_effects(physics_with_force, [InputLag(), QuadraticStiffness()], train, validation,
                                    shortlist=2)
     lag = next(e for e in ranking.entries if e.effect == "input_lag")

@@ -507,7 +507,8 @@ def rank_missing_effects(
             states (default rest).
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
-        refit_budget: each refit may take this many times the rung's own fit, in seconds and in evaluations
+        refit_budget: each refit may take this many times the rung's own fit in seconds, or this many times
+            ``max_nfev`` evaluations at the refit's own first evaluation's cost, whichever is longer
             (:mod:`torchpaml._fit.budget`); one over it is reported undecided (``EffectEvidence.undecided``).
         deadline: a ``time.perf_counter()`` time by which every refit must end (the diagnosis' ``budget``).
     """
@@ -559,7 +560,7 @@ def rank_missing_effects(
         extended_models[candidate.name] = (extended, strength, move)
     by_score = sorted(entries, key=lambda e: -e.score)
     refits = _Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, max_nfev,
-                     Budget(base.display_name, refit_budget * seconds, refit_budget * fit.evaluations,
+                     Budget(base.display_name, refit_budget * seconds, refit_budget * max_nfev,
                             math.inf if deadline is None else deadline))
     for rank, entry in enumerate(e for e in by_score if e.effect in extended_models):
         why_not = f"outside the shortlist of the {shortlist} best scores" if rank >= shortlist else \

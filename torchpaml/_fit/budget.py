@@ -11,9 +11,13 @@ capped by an absolute deadline:
 
 $$ \text{limit} = \min\big(\max(T,\; E\,t_1),\; t_{\text{deadline}} - t_{\text{start}}\big). $$
 
-The ranking gives each refit $T = 10\,t_{\text{fit}}$ and $E = 10\,n_{\text{fit}}$ (:data:`REFIT_BUDGET` times its
-rung's own fit, in seconds and in evaluations): a refit may take ten times its rung's fit, counted at the refit's
-own cost per evaluation where the rung's model simulates on a cheaper path (a linear rung's exact path).
+The ranking gives each refit $T = 10\,t_{\text{fit}}$, ten times its rung's own fit, and $E = 10\,n_{\max}$, ten full
+refits (``max_nfev`` evaluations each) at the refit's own first cost per evaluation (:data:`REFIT_BUDGET`). The
+second term matters where the rung simulates on a cheaper path than the refit (a linear rung's exact path). So the
+budget binds where a refit's evaluations grow far costlier than its first (its parameters drift towards a stiff
+or unsettled model) or it needs far more of them than a fit may take, and not where a refit merely runs on the
+nonlinear engine. Being a time, it binds at a point that moves with the machine's speed: a candidate it stops is
+reported undecided, never decided by it.
 """
 
 from __future__ import annotations

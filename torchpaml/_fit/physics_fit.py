@@ -176,9 +176,10 @@ def fit_physics(
         if key not in memo:
             count["simulations"] += 1
             began = time.perf_counter()
-            memo.clear()
             try:
-                memo[key] = computed(x)
+                value = computed(x)
+                memo.clear()
+                memo[key] = value
                 count["cost"] = min(count["cost"], 0.5 * float(np.sum(memo[key][0] ** 2)))
             finally:  # a blow-up's time counts too
                 if budget is not None:

@@ -1,0 +1,108 @@
+"""Every diagnosis in bounded time: refit only what can pass the rule, each refit within its budget, and say why.
+
+The records are simulated here: a pendulum with cubic damping (a force outside the library) diagnosed with the
+discovery, and the hidden-effect oscillator with Coulomb friction, whose second rung scores the effects with memory.
+Their times are in ``benchmarks/bench_worst_case.py``; these tests check the answers and the explanations.
+"""
+
+import json
+
+import pytest
+import torch
+
+from torchpaml import (
+    AbstractEffect,
+    Pendulum,
+    PhysicalParameter,
+    Real,
+    Simulated,
+    build_model,
+    default_effects,
+    diagnose,
+    discovery_to_dict,
+    ranking_table,
+    register_parameters,
+    write_report,
+)
+
+REASONS = ("refitted: ", "not refitted: ", "undecided: ")
+MEMORY = {"hysteresis", "dynamic_friction", "input_lag"}
+
+
+class CubicDamping(AbstractEffect):
+    """The pendulum's force outside the library: c v^3."""
+
+    name = "cubic_damping"
+
+    def __init__(self, c=0.0):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("c", c, "-", Real())], ("c",))
+
+    def force(self, physics, x, v, u):
+        return self.c * v**3
+
+
+def records(system, samples, dt=0.05, noise=0.02):
+    duration = (samples - 1) * dt
+    return (Simulated(system, "pseudorandom", 1.0, [0], duration, dt, noise=noise).experiments(),
+            Simulated(system, "multisine", 1.0, [1], duration, dt, noise=noise).experiments())
+
+
+def every_candidate_says_why(diagnosis):
+    for ranking in diagnosis.ladder.rankings:
+        table = ranking_table(ranking)
+        for entry in ranking.entries:
+            assert entry.refit_reason.startswith(REASONS), (entry.effect, entry.refit_reason)
+            assert entry.refit_reason in table
+            assert (entry.refit is not None or entry.failure is not None) == entry.refit_reason.startswith("refitted")
+
+
+def test_a_pendulum_with_a_force_outside_the_library_is_diagnosed_and_its_form_discovered():
+    truth = Pendulum(zeta=0.2, omega0=2.0, gain=2.0, learn=()) + CubicDamping(-0.5)
+    train, validation = records(truth, 4001)
+    diagnosis = diagnose(Pendulum(zeta=0.4, omega0=1.6, gain=1.5, learn=("zeta", "omega0", "gain")),
+                         default_effects(), train, validation, discover=True)
+    every_candidate_says_why(diagnosis)
+    found = discovery_to_dict(diagnosis.discovery)
+    final = found["nrmse_validation"]["discovered"]
+    assert final < 1.2 * 0.02, diagnosis.verdict  # at the noise floor: by library effects, the discovery, or both
+    if found["recommended"]:  # what the discovery adds is the truth's form
+        terms = {t["term"]: t["coefficient"] for t in found["terms"]}
+        assert terms.get("v**3") == pytest.approx(-0.5, rel=0.1), terms
+    # the second rung's effects with memory cannot pass the rule at their first-order scores: not refitted
+    second = diagnosis.ladder.rankings[1]
+    assert all(e.refit_reason.startswith("not refitted") for e in second.entries if e.effect in MEMORY), \
+        ranking_table(second)
+
+
+def test_the_second_rung_of_an_oscillator_with_coulomb_friction_scores_the_effects_with_memory():
+    device = build_model("oscillator", {"zeta": 0.2, "gain": 4.0}, {"coulomb_friction": 0.5})
+    train, validation = records(device, 2001)
+    diagnosis = diagnose(build_model("oscillator").set_learnable("zeta", "omega0", "gain"), default_effects(), train,
+                         validation)
+    assert diagnosis.ladder.added == ["coulomb_friction"], diagnosis.verdict
+    assert diagnosis.ladder.final.nrmse_validation < 1.2 * 0.02
+    every_candidate_says_why(diagnosis)
+    second = diagnosis.ladder.rankings[1]
+    assert MEMORY <= {e.effect for e in second.entries if e.score > 0}  # scored, each from its own states
+    assert not second.undecided
+
+
+def test_a_tiny_budget_leaves_candidates_undecided_and_the_verdict_and_the_files_say_so(tmp_path):
+    torch.manual_seed(0)
+    device = build_model("oscillator", {"zeta": 0.2, "gain": 4.0}, {"coulomb_friction": 0.5})
+    train, validation = records(device, 601)
+    physics = build_model("oscillator").set_learnable("zeta", "omega0", "gain")
+    diagnosis = diagnose(physics, default_effects(), train, validation, budget=1e-6)
+    undecided = diagnosis.ranking.undecided
+    assert [e.effect for e in undecided] == ["coulomb_friction", "quadratic_damping"], ranking_table(diagnosis.ranking)
+    assert all(e.refit_reason == "undecided: the diagnosis' budget was spent before its refit" for e in undecided)
+    assert diagnosis.ladder.added == []  # nothing decided, nothing added
+    assert "Undecided (their refits stopped over budget): coulomb_friction on Oscillator" in diagnosis.verdict
+    assert "--refit_budget" in diagnosis.verdict and "--budget" in diagnosis.verdict
+    write_report(diagnosis, tmp_path)
+    content = json.loads((tmp_path / "diagnosis.json").read_text())
+    assert [u["effect"] for u in content["undecided"]] == ["coulomb_friction", "quadratic_damping"]
+    rows = {row["effect"]: row for row in content["ranking"]}
+    assert rows["coulomb_friction"]["undecided"] == 0.0 and not rows["coulomb_friction"]["refitted"]
+    assert "Undecided" in (tmp_path / "report.html").read_text()
