@@ -57,6 +57,7 @@ bench: install-fleet
 	$(PYTHON) benchmarks/bench_discovery.py
 	$(PYTHON) benchmarks/bench_diagnosis.py
 	$(PYTHON) benchmarks/bench_fleet.py
+	$(PYTHON) benchmarks/bench_worst_case.py
 
 contrast: install
 	$(PYTHON) experiments/contrast/run.py --out results/contrast

@@ -10,36 +10,23 @@ import json
 import pytest
 import torch
 
+from experiment_modules import load
+
 from torchpaml import (
-    AbstractEffect,
     Pendulum,
-    PhysicalParameter,
-    Real,
     Simulated,
     build_model,
     default_effects,
     diagnose,
     discovery_to_dict,
     ranking_table,
-    register_parameters,
     write_report,
 )
 
+forces = load("discovery/forces.py")
+
 REASONS = ("refitted: ", "not refitted: ", "undecided: ")
 MEMORY = {"hysteresis", "dynamic_friction", "input_lag"}
-
-
-class CubicDamping(AbstractEffect):
-    """The pendulum's force outside the library: c v^3."""
-
-    name = "cubic_damping"
-
-    def __init__(self, c=0.0):
-        super().__init__()
-        register_parameters(self, [PhysicalParameter("c", c, "-", Real())], ("c",))
-
-    def force(self, physics, x, v, u):
-        return self.c * v**3
 
 
 def records(system, samples, dt=0.05, noise=0.02):
@@ -58,7 +45,7 @@ def every_candidate_says_why(diagnosis):
 
 
 def test_a_pendulum_with_a_force_outside_the_library_is_diagnosed_and_its_form_discovered():
-    truth = Pendulum(zeta=0.2, omega0=2.0, gain=2.0, learn=()) + CubicDamping(-0.5)
+    truth = Pendulum(zeta=0.2, omega0=2.0, gain=2.0, learn=()) + forces.CubicDamping(0.5)
     train, validation = records(truth, 4001)
     diagnosis = diagnose(Pendulum(zeta=0.4, omega0=1.6, gain=1.5, learn=("zeta", "omega0", "gain")),
                          default_effects(), train, validation, discover=True)
