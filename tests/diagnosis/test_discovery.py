@@ -6,6 +6,7 @@ oscillator plus a hidden force, 30 s at 20 Hz with 2 % output noise; the forces 
 """
 
 import math
+import time
 
 import pytest
 import torch
@@ -89,6 +90,21 @@ def test_a_first_order_support_that_does_not_hold_gives_way_to_the_best_refitted
     terms = dict((t["term"], t["coefficient"]) for t in content["terms"])
     assert list(terms) == [term] and terms[term] == pytest.approx(coefficient, rel=0.1), content
     assert content["nrmse_validation"]["discovered"] < 1.2 * floor, content
+
+
+def test_a_search_past_the_diagnosis_budget_stops_and_names_what_it_left_undecided():
+    """The misled case above with the budget already spent: the proposed form's refit and the screen stop, and the
+    discovery says so instead of running on or keeping quiet."""
+    make, term, coefficient = forces.OUTSIDE["cubic_damping"]
+    train, validation, floor = run.records(run.truth(make()))
+    ranking = rank_missing_effects(run.physics(), [], train, validation)
+    found = discover_missing_force(ranking, train, validation, regression=_Misled(), library=TermLibrary(signs=False),
+                                   deadline=time.perf_counter())
+    content = discovery_to_dict(found)
+    assert not content["recommended"] and content["terms"] == [], content
+    assert len(content["undecided"]) == 2 and "over budget" in content["undecided"][0], content
+    assert content["undecided"][1].startswith("the screen beside []: the diagnosis' budget was spent after 0 of")
+    assert "undecided: " in content["reason"]
 
 
 def test_where_first_order_is_misled_the_refitted_search_adds_a_second_term_that_earns_its_place():

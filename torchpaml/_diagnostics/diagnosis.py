@@ -200,9 +200,10 @@ def diagnose(
         discover: also discover a force outside the library (module docstring, step 4).
         terms: the user's own terms for the discovery, sympy strings over the physics' variables
             (:class:`~torchpaml._physics.TermLibrary`), e.g. ``["x**2*sign(v)"]``.
-        budget: seconds for the ladder's refits, counted from the call: a refit still running then stops, and those
-            not started are not run; each is reported undecided (``EffectEvidence.undecided``, named in the
-            verdict). Default: none; each refit keeps its own budget (``refit_budget``, :mod:`torchpaml._fit.budget`).
+        budget: seconds for the refits of the ladder and of the discovery's search, counted from the call: a refit
+            still running then stops, and those not started are not run; each is reported undecided
+            (``EffectEvidence.undecided``, ``Discovery.undecided``, named in the verdict). Default: none; each refit
+            keeps its own budget (``refit_budget``, :mod:`torchpaml._fit.budget`).
         ranking_options: forwarded to :func:`~torchpaml._diagnostics.rank_missing_effects` (``refit_budget`` among them).
     """
     if budget is not None and not budget > 0:
@@ -236,5 +237,5 @@ def diagnose(
         hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha), _distinct(base, ladder.final)))
     discovery = None
     if discover:
-        discovery = discover_missing_force(ladder.rankings[-1], train, validation, library=library)
+        discovery = discover_missing_force(ladder.rankings[-1], train, validation, library=library, deadline=deadline)
     return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation, discovery)

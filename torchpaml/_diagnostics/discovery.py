@@ -46,6 +46,8 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
 from __future__ import annotations
 
 import logging
+import math
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -55,6 +57,7 @@ from torchpaml._data import Experiment
 from torchpaml._diagnostics.closed_form import fit_closed_form, refit_closed_form
 from torchpaml._diagnostics.ranking import EffectEvidence, ModelScore, Ranking, as_records
 from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._fit.budget import REFIT_BUDGET, Budget, OverBudget
 from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
 from torchpaml._fit.uncertainty import COLLINEARITY_LIMIT
@@ -76,6 +79,8 @@ STEP = 1e-6
 #: one-term extension of the kept support) is fitted with the physics for at most SCREEN_NFEV evaluations, and the
 #: SCREEN that fit the training records best are refitted in full.
 SCREEN, SCREEN_NFEV = 4, 10
+#: Significant digits to which the search compares mismatches and criteria (:func:`_settled`).
+SETTLED_DIGITS = 5
 
 
 @dataclass
@@ -84,7 +89,8 @@ class Discovery:
 
     ``effect`` is the refitted closed form (``None`` when nothing was kept); ``samples`` holds, along the
     first training record's neural trajectory, each variable, and the learned rate and the closed form's
-    rate on the first equation, for :func:`~torchpaml.discovery_figure`.
+    rate on the first equation, for :func:`~torchpaml.discovery_figure`. ``undecided`` names the forms whose fit
+    stopped over its budget (:mod:`torchpaml._fit.budget`), and a search that the diagnosis' budget ended.
     """
 
     physics: ModelScore
@@ -96,6 +102,7 @@ class Discovery:
     recommended: bool
     reason: str
     samples: dict[str, torch.Tensor] = field(repr=False)
+    undecided: list[str] = field(default_factory=list)
 
     @property
     def expression(self) -> str | dict[str, str]:
@@ -207,6 +214,7 @@ def discover_missing_force(
     max_iter: int = 60,
     max_nfev: int = 40,
     seed: int = 0,
+    deadline: float | None = None,
 ) -> Discovery:
     """Discover the force or rate missing from the ranking's physics (module docstring).
 
@@ -223,6 +231,9 @@ def discover_missing_force(
         max_iter: L-BFGS iterations of the neural rate.
         max_nfev: iteration limit of the closed form's refit.
         seed: seed of the network's initial weights.
+        deadline: a ``time.perf_counter()`` time by which the search by refits ends (the diagnosis' ``budget``).
+            Each fit has its own budget too: :data:`~torchpaml._fit.budget.REFIT_BUDGET` times its evaluation limit at
+            its first evaluation's cost. A form stopped by either is named in ``Discovery.undecided``.
     """
     train, validation = as_records(train), as_records(validation)
     library, regression = library or TermLibrary(), regression or SparseRegression()
@@ -245,6 +256,8 @@ def discover_missing_force(
     J = data.jacobian
     U, S, _ = torch.linalg.svd(J / J.norm(dim=0).clamp_min(1e-300), full_matrices=False)
     Q = U[:, S * COLLINEARITY_LIMIT >= 1]  # what the physics makes by moves the records determine
+    log.debug("discovery: the physics' unit-scaled Jacobian has singular values %s; %d of them at least 1/%g",
+              [f"{v:.4g}" for v in S.tolist()], Q.shape[1], COLLINEARITY_LIMIT)
 
     def projected(M: torch.Tensor) -> torch.Tensor:
         return M - Q @ (Q.T @ M)
@@ -271,11 +284,20 @@ def discover_missing_force(
         columns = torch.cat([J, data.responses[:, [pairs.index(p) for p in kept]]], dim=1)
         return torch.linalg.lstsq(columns, data.measured[:, None]).solution[J.shape[1]:, 0].tolist()
 
+    undecided: list[str] = []
+    end = math.inf if deadline is None else deadline
+
     def refitted(kept: list[tuple[str, str]]) -> tuple[ModelScore | None, bool | None, str]:
         """The closed form of ``kept`` refitted, whether it is missing (:func:`_judge`) and why."""
-        log.info("discovery: refitting %s", ", ".join(f"{t} ({e})" for e, t in kept))
-        score = refit_closed_form(physics, kept, first_order(kept), data.widths, train, validation, rule, max_nfev,
-                                  initial_state, first_order)
+        form = ", ".join(f"{t} ({e})" for e, t in kept)
+        log.info("discovery: refitting %s", form)
+        budget = Budget(f"discovery: refitting {form}", evaluations=REFIT_BUDGET * max_nfev, deadline=end)
+        try:
+            score = refit_closed_form(physics, kept, first_order(kept), data.widths, train, validation, rule,
+                                      max_nfev, initial_state, first_order, budget)
+        except OverBudget as over:
+            undecided.append(f"{form}: over budget ({over.seconds:.1f} s)")
+            return None, None, f"its refit stopped over budget ({over.seconds:.1f} s)"
         if score is None:
             return None, None, "no term of the closed form is determined by the records"
         return score, *_judge(baseline, library_best, score, rule)
@@ -286,14 +308,26 @@ def discover_missing_force(
         """``base`` (fitted coefficients ``starts``) plus each usable term not in it, fitted with the physics for
         :data:`SCREEN_NFEV` evaluations; the :data:`SCREEN` that fit the training records best, refitted in full."""
         short = {}
-        for extra in (pairs[i] for i in usable if pairs[i] not in base):
+        extras = [pairs[i] for i in usable if pairs[i] not in base and base + [pairs[i]] != proposed]  # refitted already
+        for i, extra in enumerate(extras, 1):
+            if time.perf_counter() >= end:
+                undecided.append(f"the screen beside [{', '.join(t for _, t in base)}]: the diagnosis' budget was "
+                                 f"spent after {i - 1} of {len(extras)} terms")
+                break
             kept = base + [extra]
-            if kept != proposed:  # that support is refitted already
+            log.info("discovery: screening %d of %d: %s (%s)", i, len(extras), extra[1], extra[0])
+            budget = Budget(f"discovery: screening {extra[1]}", evaluations=REFIT_BUDGET * SCREEN_NFEV, deadline=end)
+            try:
                 fitted = fit_closed_form(physics, kept, first_order(kept) or [*starts, 0.0], data.widths, train,
-                                         SCREEN_NFEV, initial_state)
-                if fitted is not None:
-                    short[extra] = fitted[1].mismatch
-        return [refitted(base + [extra]) for extra in sorted(short, key=short.get)[:SCREEN]]
+                                         SCREEN_NFEV, initial_state, budget)
+            except OverBudget as over:
+                undecided.append(f"{', '.join(t for _, t in kept)}: screen over budget ({over.seconds:.1f} s)")
+                continue
+            if fitted is not None:
+                short[extra] = fitted[1].mismatch
+        ordered = sorted(short, key=lambda extra: _settled(short[extra]))  # ties: the library's order
+        log.debug("discovery: screened mismatches %s", [(f"{short[e]:.6g}", e[1], e[0]) for e in ordered[:2 * SCREEN]])
+        return [refitted(base + [extra]) for extra in ordered[:SCREEN]]
 
     candidates = [refitted(proposed)]
     sloppy = Q.shape[1] < J.shape[1]  # a combination of the physics' parameters that the records do not determine
@@ -303,25 +337,37 @@ def discover_missing_force(
                  "rests on a physics the records do not determine" if sloppy else "does not hold", len(usable))
         candidates += screened([], [])
     held = [c for c in candidates if c[1] is not None]
-    best = min(held, key=lambda c: c[0].criterion) if held else candidates[0]
+    best = min(held, key=lambda c: _settled(c[0].criterion)) if held else candidates[0]
     while search and best[1] is not None and len(support := _support(best[0])) < regression.max_terms:
         log.info("discovery: screening one more term beside %s", ", ".join(t for _, t in support[0]))
         extended = [c for c in screened(*support) if c[1] is not None]  # forward, one term at a time
-        top = min(extended, key=lambda c: c[0].criterion, default=None)
+        top = min(extended, key=lambda c: _settled(c[0].criterion), default=None)
         if top is None or top[0].criterion >= best[0].criterion - rule.threshold:
             break
         best = top
     discovered, missing, reason = best
+    if undecided:
+        reason += f"; undecided: {'; '.join(undecided)}"
     if discovered is None:
-        return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False, reason, samples)
+        return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False, reason, samples,
+                         undecided)
     effect = discovered.model.effects["discovered"]
     samples["closed_form"] = _closed_form_samples(effect, data.samples, variables, next(iter(equations)))
     if missing is None:  # the closed form does not improve on the physics: nothing is missing
         samples["closed_form"] = torch.zeros_like(samples["learned"])
         return Discovery(baseline, library_best, neural.mismatch, neural_validation, None, None, False,
-                         f"the best closed form, {effect.expression()}, does not improve on the physics: {reason}", samples)
+                         f"the best closed form, {effect.expression()}, does not improve on the physics: {reason}", samples,
+                         undecided)
     return Discovery(baseline, library_best, neural.mismatch, neural_validation, effect, discovered, missing, reason,
-                     samples)
+                     samples, undecided)
+
+
+def _settled(value: float) -> float:
+    """``value`` to :data:`SETTLED_DIGITS` significant digits: the search's choices (which screened terms to refit,
+    which refit to keep) compare these, so that forms whose figures differ only by rounding (a constant on either
+    tank of the linear tanks screens to the same mismatch to 6 digits) tie and keep the library's order, rather than
+    letting the machine's rounding choose between them."""
+    return float(f"{value:.{SETTLED_DIGITS}g}")
 
 
 def _support(score: ModelScore) -> tuple[list[tuple[str, str]], list[float]]:

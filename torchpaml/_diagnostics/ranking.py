@@ -299,7 +299,7 @@ RESCUE_FRACTIONS = (0.5, 0.25)
 
 def refit_effect(extended, name: str, start: float, train: list[Experiment], max_nfev: int, initial_state: str,
                  baseline: PhysicsEstimate | None = None, move: torch.Tensor | None = None, ftol: float = 1e-10,
-                 budget: Budget | None = None) -> PhysicsEstimate:
+                 budget: Budget | None = None, bounds: dict[str, tuple[float, float]] | None = None) -> PhysicsEstimate:
     """Fit ``extended`` from the first-order start (:func:`_first_order`): the strength ``name`` at ``start`` and,
     given the ``baseline`` fit, its unknowns (raw parameters, then estimated initial states) moved by ``move``.
 
@@ -309,12 +309,13 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     or blows up the simulation, down to 0. Where that fit ends worse than the baseline on the training
     records (a poor local optimum: the baseline, the effect at 0, fits better), half the move, then a
     quarter (:data:`RESCUE_FRACTIONS`), is tried as the start in the same way, and the better fit is kept.
-    ``ftol`` and ``budget`` (shared by every fit tried here; :class:`~torchpaml._fit.budget.OverBudget` ends the
-    refit) go to :func:`~torchpaml._fit.fit_physics`.
+    ``ftol``, ``budget`` (shared by every fit tried here; :class:`~torchpaml._fit.budget.OverBudget` ends the
+    refit) and ``bounds`` (the effect's, :meth:`~torchpaml._physics.AbstractEffect.bounds`) go to
+    :func:`~torchpaml._fit.fit_physics`.
     """
     warm = [WarmStart() for _ in train]  # the check's simulations start the fit's first Newton solves
     fit = functools.partial(fit_physics, extended, train, max_nfev=max_nfev, initial_state=initial_state, ftol=ftol,
-                            budget=budget)
+                            budget=budget, bounds=bounds)
     states = None if baseline is None or initial_state != "estimate" else baseline.initial_states
     if baseline is None or move is None:
         return _halving_strength(extended, name, start, fit, states)
@@ -389,7 +390,8 @@ def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tens
 
 
 def _free_shape(entry: EffectEvidence, train: list[Experiment], validation: list[Experiment], rule: SelectionRule,
-                max_nfev: int, initial_state: str, ftol: float, budget: Budget) -> None:
+                max_nfev: int, initial_state: str, ftol: float, budget: Budget,
+                bounds: dict[str, tuple[float, float]]) -> None:
     """``entry``'s refit replaced by its model refitted with the effect's shape parameters freed, if that beats it by
     the rule's threshold; a shape refit over ``budget`` leaves the refit and says so in ``entry.refit_reason``."""
     score = entry.refit
@@ -400,7 +402,7 @@ def _free_shape(entry: EffectEvidence, train: list[Experiment], validation: list
     states = score.train_states if initial_state == "estimate" else None
     try:
         estimate = fit_physics(freed, train, max_nfev=max_nfev, initial_state=initial_state, start_states=states,
-                               ftol=ftol, budget=budget)
+                               ftol=ftol, budget=budget, bounds=bounds)
     except OverBudget as over:
         entry.refit_reason += f"; its shape ({', '.join(shape)}) not freed: over budget ({over.seconds:.1f} s)"
         return
@@ -449,7 +451,8 @@ class _Refits:
         t = self.template
         return Budget(f"refitting {self.name} + {effect}", t.seconds, t.evaluations, t.deadline)
 
-    def run(self, entry: EffectEvidence, extended, strength: str, move: torch.Tensor) -> None:
+    def run(self, entry: EffectEvidence, extended, strength: str, move: torch.Tensor,
+            bounds: dict[str, tuple[float, float]]) -> None:
         """Refit ``entry``'s model and record in ``entry`` the result, the failure, or that it is undecided."""
         budget = self.budget(entry.effect)
         if budget.expired:
@@ -458,7 +461,7 @@ class _Refits:
         log.info("refitting %s + %s", self.name, entry.effect)
         try:
             refit = refit_effect(extended, strength, entry.first_order_strength, self.train, self.max_nfev,
-                                 self.initial_state, self.fit, move, self.ftol, budget)
+                                 self.initial_state, self.fit, move, self.ftol, budget, bounds)
         except OverBudget as over:
             entry.undecided, entry.refit_reason = over.seconds, f"undecided: over budget ({over.seconds:.1f} s)"
             log.info("%s + %s undecided: over budget (%.1f s)", self.name, entry.effect, over.seconds)
@@ -557,7 +560,9 @@ def rank_missing_effects(
             continue
         extended, (score, order, start, move) = best
         entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start))
-        extended_models[candidate.name] = (extended, strength, move)
+        bounds = {f"{candidate.name}.{name}": limits for name, limits in candidate.bounds(train).items()
+                  if f"{candidate.name}.{name}" in extended.learnable_names()}
+        extended_models[candidate.name] = (extended, strength, move, bounds)
     by_score = sorted(entries, key=lambda e: -e.score)
     refits = _Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, max_nfev,
                      Budget(base.display_name, refit_budget * seconds, refit_budget * max_nfev,
@@ -573,7 +578,8 @@ def rank_missing_effects(
     refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
     if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
         best = refitted[0]
-        _free_shape(best, train, validation, rule, max_nfev, initial_state, refits.ftol, refits.budget(best.effect))
+        _free_shape(best, train, validation, rule, max_nfev, initial_state, refits.ftol, refits.budget(best.effect),
+                    extended_models[best.effect][3])
         best.improvement = baseline.criterion - best.refit.criterion
         best.unphysical = unphysical_values(best.refit.model._rows())
     rest = [e for e in by_score if e.refit is None]

@@ -87,6 +87,13 @@ class AbstractEffect(nn.Module):
         probe and scores and refits the most promising. The default, ``[{}]``: the parameters as constructed."""
         return [{}]
 
+    def bounds(self, records: list) -> dict[str, tuple[float, float]]:
+        """Bounds ``{name: (lower, upper)}`` in physical units on the effect's parameters while the ranking refits it
+        on ``records``, where a value beyond them means a state faster than the sampling resolves (a stiff model
+        that costs every simulation dearly and that the records cannot tell from its limit). The default, ``{}``:
+        none."""
+        return {}
+
     def probe(self, records: list) -> float | None:
         """The strength at which the ranking probes the effect's first-order direction on ``records``, where its
         default (1e-4) does not suit; ``None`` (the default): the ranking's."""

@@ -105,6 +105,7 @@ def discovery_to_dict(discovery: Discovery) -> dict:
         "parameters": final.parameters,
         "uncertainty": _errors(final.uncertainty),
         "effect": None if discovery.effect is None else discovery.effect.to_config(),
+        "undecided": discovery.undecided,
     }
 
 
