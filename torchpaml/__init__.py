@@ -50,7 +50,7 @@ from torchpaml._fit import (
     fit_residual,
     reestimate_shift,
 )
-from torchpaml._fit.budget import Budget, OverBudget
+from torchpaml._budget import Budget, OverBudget
 from torchpaml._fit.uncertainty import IdentifiabilityWarning, Uncertainty
 from torchpaml._metrics import fit_percent, mismatch, rmse
 from torchpaml._parameters import Interval, PhysicalParameter, Positive, Real, register_parameters

@@ -22,7 +22,7 @@ from torchpaml import (
     time_grid,
 )
 from torchpaml._diagnostics.ranking import GATE_MARGIN, _cannot_pass
-from torchpaml._fit import budget as budget_module
+from torchpaml import _budget as budget_module
 
 
 @pytest.fixture(scope="module")
@@ -52,10 +52,14 @@ def test_a_fit_past_its_budget_stops_with_the_time_it_ran(duffing):
 
 def test_the_limit_counts_evaluations_at_the_first_ones_cost_and_the_deadline_caps_it():
     budget = Budget("x", seconds=1.0, evaluations=10.0)
-    assert budget.limit == 1.0  # before the first evaluation: the seconds alone
-    budget.check(1, 0.5, evaluation_seconds=0.3)
+    assert budget.limit == math.inf  # until the first evaluation has ended, the deadline alone
+    budget.check(0.5, evaluation_seconds=0.3)
     assert budget.limit == pytest.approx(3.0)  # 10 evaluations at 0.3 s
+    quick = Budget("x", seconds=1.0, evaluations=10.0)
+    quick.check(0.5, evaluation_seconds=0.01)
+    assert quick.limit == 1.0  # the seconds, where they are longer
     capped = Budget("y", seconds=100.0, deadline=time.perf_counter() + 2.0)
+    capped.check(0.5, evaluation_seconds=0.1)
     assert capped.limit <= 2.0 and not capped.expired
     assert Budget("z", deadline=time.perf_counter() - 1.0).expired
     assert Budget("free").limit == math.inf
@@ -64,7 +68,7 @@ def test_the_limit_counts_evaluations_at_the_first_ones_cost_and_the_deadline_ca
 def test_a_long_fit_prints_its_progress(duffing, caplog, monkeypatch):
     monkeypatch.setattr(budget_module, "PROGRESS_SECONDS", 0.0)  # a line at every evaluation
     model = nonlinear_start().set_learnable("zeta", "omega0", "gain", "cubic_stiffness.k3")
-    with caplog.at_level(logging.INFO, logger="torchpaml._fit.budget"):
+    with caplog.at_level(logging.INFO, logger="torchpaml._budget"):
         estimate = fit_physics(model, duffing[0], budget=Budget("fitting the Duffing"))
     lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("fitting the Duffing")]
     assert len(lines) == estimate.evaluations, lines
@@ -96,3 +100,24 @@ def test_a_refit_over_its_budget_is_undecided_and_says_why(duffing):
     assert ranking.undecided == [entry] and ranking.recommended is None
     generous = rank_missing_effects(Oscillator(zeta=0.3, omega0=1.8, gain=3.0), [CubicStiffness()], train, validation)
     assert generous.recommended is not None and generous.recommended.refit_reason.startswith("refitted")
+
+
+def test_an_evaluation_that_runs_away_inside_the_engine_stops_at_the_next_newton_sweep(duffing, monkeypatch):
+    """The active budget is enforced inside the shooting engine, not only between evaluations."""
+    from torchpaml._simulate import shooting
+
+    sweeps = []
+    original = shooting._Sweep
+
+    def slow_sweep(*args, **kwargs):  # every sweep after the first evaluation takes 50 ms
+        sweeps.append(time.perf_counter())
+        if budget.count >= 1:
+            time.sleep(0.05)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(shooting, "_Sweep", slow_sweep)
+    budget = Budget("a runaway", evaluations=1.0)  # the limit: one first evaluation's time
+    model = nonlinear_start().set_learnable("zeta", "omega0", "gain", "cubic_stiffness.k3")
+    with pytest.raises(OverBudget):
+        fit_physics(model, duffing[0], budget=budget)
+    assert budget.count == 1  # stopped inside the second evaluation, before it ended

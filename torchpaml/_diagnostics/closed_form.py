@@ -28,7 +28,7 @@ from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, ModelScore, ref
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._errors import SimulationError
 from torchpaml._fit import PhysicsEstimate
-from torchpaml._fit.budget import Budget
+from torchpaml._budget import Budget
 from torchpaml._fit.uncertainty import IdentifiabilityWarning
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import compile_term, state_columns, width_symbol
@@ -62,7 +62,7 @@ def fit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[fl
                     budget: Budget | None = None) -> tuple[torch.nn.Module, PhysicsEstimate] | None:
     """``physics + DiscoveredForce(pairs)`` from ``coefficients`` (widths from twice their lower bound, bounded to
     their ranges) fitted with the physics by output error, and its estimate; ``None`` where it blows up. Past
-    ``budget``, :class:`~torchpaml._fit.budget.OverBudget`."""
+    ``budget``, :class:`~torchpaml._budget.OverBudget`."""
     terms = [t for _, t in pairs]
     used = sorted({w for t in terms for w in compile_term(t, None).widths})
     effect = DiscoveredForce(terms, coefficients, [e for e, _ in pairs], widths={w: 2 * widths[w][0] for w in used})
@@ -86,7 +86,7 @@ def refit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[
     """``physics + DiscoveredForce(pairs)`` refitted and scored, with honest numbers (module docstring, step 3);
     ``None`` when no term survives or it blows up. Each reduced support starts from its own first-order coefficients
     (``first_order``), not from the previous refit's, whose collinear terms carry no information. Every refit shares
-    ``budget`` (:class:`~torchpaml._fit.budget.OverBudget` past it)."""
+    ``budget`` (:class:`~torchpaml._budget.OverBudget` past it)."""
     index = state_columns(physics)
     owner = {width_symbol(s): s for s in index}
 

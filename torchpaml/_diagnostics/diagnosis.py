@@ -43,7 +43,7 @@ from torchpaml._diagnostics.validity import AmplitudeBins, error_by_amplitude
 from torchpaml._errors import DataError
 from torchpaml._grid import uniform_step
 from torchpaml._simulate.records import simulate_record
-from torchpaml._fit.budget import REFIT_BUDGET
+from torchpaml._budget import REFIT_BUDGET
 from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters
@@ -203,7 +203,7 @@ def diagnose(
         budget: seconds for the refits of the ladder and of the discovery's search, counted from the call: a refit
             still running then stops, and those not started are not run; each is reported undecided
             (``EffectEvidence.undecided``, ``Discovery.undecided``, named in the verdict). Default: none; each refit
-            keeps its own budget (``refit_budget``, :mod:`torchpaml._fit.budget`).
+            keeps its own budget (``refit_budget``, :mod:`torchpaml._budget`).
         ranking_options: forwarded to :func:`~torchpaml._diagnostics.rank_missing_effects` (``refit_budget`` among them).
     """
     if budget is not None and not budget > 0:

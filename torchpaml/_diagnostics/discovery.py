@@ -57,7 +57,7 @@ from torchpaml._data import Experiment
 from torchpaml._diagnostics.closed_form import fit_closed_form, refit_closed_form
 from torchpaml._diagnostics.ranking import EffectEvidence, ModelScore, Ranking, as_records
 from torchpaml._diagnostics.selection import SelectionRule
-from torchpaml._fit.budget import REFIT_BUDGET, Budget, OverBudget
+from torchpaml._budget import REFIT_BUDGET, Budget, OverBudget
 from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
 from torchpaml._fit.uncertainty import COLLINEARITY_LIMIT
@@ -90,7 +90,7 @@ class Discovery:
     ``effect`` is the refitted closed form (``None`` when nothing was kept); ``samples`` holds, along the
     first training record's neural trajectory, each variable, and the learned rate and the closed form's
     rate on the first equation, for :func:`~torchpaml.discovery_figure`. ``undecided`` names the forms whose fit
-    stopped over its budget (:mod:`torchpaml._fit.budget`), and a search that the diagnosis' budget ended.
+    stopped over its budget (:mod:`torchpaml._budget`), and a search that the diagnosis' budget ended.
     """
 
     physics: ModelScore
@@ -232,7 +232,7 @@ def discover_missing_force(
         max_nfev: iteration limit of the closed form's refit.
         seed: seed of the network's initial weights.
         deadline: a ``time.perf_counter()`` time by which the search by refits ends (the diagnosis' ``budget``).
-            Each fit has its own budget too: :data:`~torchpaml._fit.budget.REFIT_BUDGET` times its evaluation limit at
+            Each fit has its own budget too: :data:`~torchpaml._budget.REFIT_BUDGET` times its evaluation limit at
             its first evaluation's cost. A form stopped by either is named in ``Discovery.undecided``.
     """
     train, validation = as_records(train), as_records(validation)

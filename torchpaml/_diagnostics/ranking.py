@@ -56,7 +56,7 @@ from torch import nn
 from torchpaml._data import Experiment
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._errors import ResolutionError, SimulationError
-from torchpaml._fit.budget import REFIT_BUDGET, Budget, OverBudget
+from torchpaml._budget import REFIT_BUDGET, Budget, OverBudget
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import unphysical_values
@@ -113,7 +113,7 @@ class EffectEvidence:
     simulation blows up: a lag driven towards 0 is a rate beyond what RK4 integrates), or why
     the candidate was not scored (its own states blow up at zero strength). ``refit_reason`` says why the
     candidate was or was not refitted; ``undecided`` is the seconds its refit ran before it stopped over its budget
-    (:mod:`torchpaml._fit.budget`; 0 where the diagnosis' budget was spent before it started), else ``None``.
+    (:mod:`torchpaml._budget`; 0 where the diagnosis' budget was spent before it started), else ``None``.
     """
 
     effect: str
@@ -309,7 +309,7 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     or blows up the simulation, down to 0. Where that fit ends worse than the baseline on the training
     records (a poor local optimum: the baseline, the effect at 0, fits better), half the move, then a
     quarter (:data:`RESCUE_FRACTIONS`), is tried as the start in the same way, and the better fit is kept.
-    ``ftol``, ``budget`` (shared by every fit tried here; :class:`~torchpaml._fit.budget.OverBudget` ends the
+    ``ftol``, ``budget`` (shared by every fit tried here; :class:`~torchpaml._budget.OverBudget` ends the
     refit) and ``bounds`` (the effect's, :meth:`~torchpaml._physics.AbstractEffect.bounds`) go to
     :func:`~torchpaml._fit.fit_physics`.
     """
@@ -512,7 +512,7 @@ def rank_missing_effects(
         max_nfev: iteration limit of each refit.
         refit_budget: each refit may take this many times the rung's own fit in seconds, or this many times
             ``max_nfev`` evaluations at the refit's own first evaluation's cost, whichever is longer
-            (:mod:`torchpaml._fit.budget`); one over it is reported undecided (``EffectEvidence.undecided``).
+            (:mod:`torchpaml._budget`); one over it is reported undecided (``EffectEvidence.undecided``).
         deadline: a ``time.perf_counter()`` time by which every refit must end (the diagnosis' ``budget``).
     """
     train, validation = as_records(train), as_records(validation)

@@ -27,6 +27,7 @@ returns the solver it resolved (``PhysicsEstimate.solver``) and sets it on the m
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 import time
@@ -40,7 +41,7 @@ from scipy.optimize import least_squares
 
 from torchpaml._data import Experiment
 from torchpaml._errors import ResolutionError, SimulationError
-from torchpaml._fit.budget import Budget
+from torchpaml._budget import Budget
 from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solver
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
 from torchpaml._parameters import record_uncertainty
@@ -138,8 +139,8 @@ def fit_physics(
             ``Auto()``/``None`` (the default): the model's own solver where it is one of those, else RK4 at one
             substep, and TR-BDF2 where RK4 cannot resolve the optimum. The step check raises the substeps where
             the fitted output depends on the step (:mod:`torchpaml._fit.resolution`).
-        budget: a :class:`~torchpaml._fit.budget.Budget`: progress lines while the fit runs, and
-            :class:`~torchpaml._fit.budget.OverBudget` raised past its limit (default: neither).
+        budget: a :class:`~torchpaml._budget.Budget`: progress lines while the fit runs, and
+            :class:`~torchpaml._budget.OverBudget` raised past its limit (default: neither).
     """
     if initial_state not in ("rest", "estimate"):
         raise ValueError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
@@ -177,13 +178,14 @@ def fit_physics(
             count["simulations"] += 1
             began = time.perf_counter()
             try:
-                value = computed(x)
+                with budget.active() if budget is not None else contextlib.nullcontext():
+                    value = computed(x)
                 memo.clear()
                 memo[key] = value
                 count["cost"] = min(count["cost"], 0.5 * float(np.sum(memo[key][0] ** 2)))
             finally:  # a blow-up's time counts too
                 if budget is not None:
-                    budget.check(count["simulations"], count["cost"], time.perf_counter() - began)
+                    budget.check(count["cost"], time.perf_counter() - began)
         return memo[key]
 
     def computed(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -52,6 +52,7 @@ import torch
 from torch.nn.utils import parametrize
 
 from torchpaml._errors import SimulationError
+from torchpaml._budget import checkpoint
 from torchpaml._grid import check_hold
 from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.scan import linear_recurrence
@@ -224,6 +225,7 @@ def _newton(physics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: 
     scale = x0.abs().amax(dim=0).clamp(min=1.0)
     defect = 0.0 if layout.S == 1 else math.inf  # one segment: its start is x0, exact
     for sweep in range(1, max_sweeps + 1):
+        checkpoint()  # a fit's budget (torchpaml._budget) stops a solve that does not settle
         graded = differentiable and defect <= GRADED_DEFECT
         result = _Sweep(physics, layout, starts, scale, central=graded)
         ends = result.centre[:, :, -1].detach()  # (batch, S, n); a state that blew up leaves its end non-finite

@@ -19,7 +19,7 @@ from typing import Literal
 from jsonargparse import ActionConfigFile, ArgumentError, ArgumentParser
 
 from torchpaml._diagnostics.selection import SelectionRule
-from torchpaml._fit.budget import REFIT_BUDGET
+from torchpaml._budget import REFIT_BUDGET
 from torchpaml.cli.progress import progress_lines
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import EFFECTS, AbstractEffect

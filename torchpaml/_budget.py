@@ -6,10 +6,16 @@ line (evaluations, the cost $\tfrac12\|r\|^2$ so far, the seconds spent and allo
 :class:`OverBudget`, which ends the fit. The limit is checked between evaluations, so a fit overruns it by at most
 one evaluation.
 
+While a fit evaluates, its budget is the *active* one (:meth:`Budget.active`), and the simulation engine calls
+:func:`checkpoint` at every Newton sweep: an evaluation that runs away inside the engine (Newton that does not settle
+and lengthens its segments towards sequential stepping) stops there too, not only between evaluations.
+
 The limit is the larger of a time in seconds and a count of evaluations at the fit's own first evaluation's cost,
 capped by an absolute deadline:
 
-$$ \text{limit} = \min\big(\max(T,\; E\,t_1),\; t_{\text{deadline}} - t_{\text{start}}\big). $$
+$$ \text{limit} = \min\big(\max(T,\; E\,t_1),\; t_{\text{deadline}} - t_{\text{start}}\big), $$
+
+where $t_1$ is the first evaluation's time; until that evaluation ends, the deadline alone limits the fit.
 
 The ranking gives each refit $T = 10\,t_{\text{fit}}$, ten times its rung's own fit, and $E = 10\,n_{\max}$, ten full
 refits (``max_nfev`` evaluations each) at the refit's own first cost per evaluation (:data:`REFIT_BUDGET`). The
@@ -22,12 +28,14 @@ reported undecided, never decided by it.
 
 from __future__ import annotations
 
+import contextvars
 import logging
 import math
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
-__all__ = ["Budget", "OverBudget", "PROGRESS_SECONDS", "REFIT_BUDGET"]
+__all__ = ["Budget", "OverBudget", "PROGRESS_SECONDS", "REFIT_BUDGET", "checkpoint"]
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +43,16 @@ log = logging.getLogger(__name__)
 PROGRESS_SECONDS = 5.0
 #: A ranking's refit may take this many times its rung's own fit (module docstring).
 REFIT_BUDGET = 10.0
+
+
+_ACTIVE: contextvars.ContextVar[Budget | None] = contextvars.ContextVar("torchpaml_budget", default=None)
+
+
+def checkpoint() -> None:
+    """Raise :class:`OverBudget` if the active budget (:meth:`Budget.active`) is past its limit; else nothing."""
+    budget = _ACTIVE.get()
+    if budget is not None:
+        budget.enforce()
 
 
 class OverBudget(RuntimeError):
@@ -52,15 +70,17 @@ class Budget:
     Args:
         label: what the progress lines call the fit, e.g. ``"refitting Pendulum + dynamic_friction"``.
         seconds: $T$, the limit in seconds (default none).
-        evaluations: $E$, the limit in evaluations at the cost of the first one (default none).
+        evaluations: $E$, the limit in evaluations at the cost of the first one (default none). With neither, only
+            the deadline limits the fit.
         deadline: an absolute ``time.perf_counter()`` by which the fit must end (default none).
     """
 
     label: str
-    seconds: float = math.inf
-    evaluations: float = math.inf
+    seconds: float | None = None
+    evaluations: float | None = None
     deadline: float = math.inf
     started: float = field(default_factory=time.perf_counter, init=False)
+    count: int = field(default=0, init=False)
     _first: float | None = field(default=None, init=False, repr=False)
     _reported: float = field(default=0.0, init=False, repr=False)
 
@@ -71,17 +91,37 @@ class Budget:
 
     @property
     def limit(self) -> float:
-        """The limit in seconds; before the first evaluation, $T$ alone (capped by the deadline)."""
-        per_evaluation = math.inf if self.evaluations == math.inf else self.evaluations * (self._first or 0.0)
-        return min(max(self.seconds, per_evaluation), self.deadline - self.started)
+        """The limit in seconds. Until the first evaluation has ended, the deadline alone: that evaluation sets the
+        scale of $E$, and a first evaluation cut short would leave a refit undecided on a machine that is merely slow."""
+        cap = self.deadline - self.started
+        if self._first is None or (self.seconds is None and self.evaluations is None):
+            return cap
+        return min(max(self.seconds or 0.0, (self.evaluations or 0.0) * self._first), cap)
 
     @property
     def expired(self) -> bool:
         """Whether the deadline has passed (checked before a fit starts)."""
         return time.perf_counter() >= self.deadline
 
-    def check(self, evaluations: int, cost: float, evaluation_seconds: float) -> None:
-        """Report an evaluation: log progress every :data:`PROGRESS_SECONDS`, raise :class:`OverBudget` past the limit."""
+    @contextmanager
+    def active(self):
+        """Make this the budget that :func:`checkpoint` enforces while the block runs (an evaluation of its fit)."""
+        token = _ACTIVE.set(self)
+        try:
+            yield self
+        finally:
+            _ACTIVE.reset(token)
+
+    def enforce(self) -> None:
+        """Raise :class:`OverBudget` past the limit."""
+        elapsed = self.elapsed
+        if elapsed > self.limit:
+            raise OverBudget(self.label, elapsed, self.limit)
+
+    def check(self, cost: float, evaluation_seconds: float) -> None:
+        """Report an evaluation whose fit's lowest cost so far is ``cost``: log progress every :data:`PROGRESS_SECONDS`
+        (the evaluations of every fit under this budget, counted together), raise :class:`OverBudget` past the limit."""
+        self.count += 1
         if self._first is None:
             self._first = evaluation_seconds
         elapsed = self.elapsed
@@ -89,6 +129,5 @@ class Budget:
         if elapsed - self._reported >= PROGRESS_SECONDS:
             self._reported = elapsed
             allowed = "" if limit == math.inf else f" of {limit:.0f} s"
-            log.info("%s: %d evaluations, cost %.6g, %.0f s%s", self.label, evaluations, cost, elapsed, allowed)
-        if elapsed > limit:
-            raise OverBudget(self.label, elapsed, limit)
+            log.info("%s: %d evaluations, cost %.6g, %.0f s%s", self.label, self.count, cost, elapsed, allowed)
+        self.enforce()
