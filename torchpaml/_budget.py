@@ -129,5 +129,6 @@ class Budget:
         if elapsed - self._reported >= PROGRESS_SECONDS:
             self._reported = elapsed
             allowed = "" if limit == math.inf else f" of {limit:.0f} s"
-            log.info("%s: %d evaluations, cost %.6g, %.0f s%s", self.label, self.count, cost, elapsed, allowed)
+            lowest = f"cost {cost:.6g}" if math.isfinite(cost) else "no finite cost yet"
+            log.info("%s: %d evaluations, %s, %.0f s%s", self.label, self.count, lowest, elapsed, allowed)
         self.enforce()
