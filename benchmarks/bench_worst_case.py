@@ -10,7 +10,7 @@ of the twelve candidates refitted alone (``rank_missing_effects`` with that cand
 so that the refit runs, within the default budget); the time is that of the refit (``refit_effect``), the rung's fit
 and the scoring left out. A refit that the gate would not run is marked; one stopped by its budget is reported
 undecided with its seconds. Last, discovery alone on a physics whose first-order form does
-not hold (the pendulum's truth fitted by an oscillator), timed with its screening.
+not hold (the pendulum with the hidden force, fitted by an oscillator), timed with its screening.
 
 Reports, per length: the slowest refit against its rung's fit, the discovery's time, and the table of every refit.
 One thread.
@@ -138,8 +138,7 @@ def main() -> None:
             for row in refit_times(rung, train, validation):
                 cases.append({"rung": name, "rung_fit": fit_seconds, **row, "ratio": row["seconds"] / fit_seconds})
         slowest = max(cases, key=lambda c: c["ratio"])
-        truth = Pendulum(zeta=0.2, omega0=2.0, gain=2.0, learn=()) + CubicDamping(0.5)
-        train, validation = records(truth, samples)
+        train, validation = records(Pendulum(zeta=0.2, omega0=2.0, gain=2.0, learn=()), samples)  # + the hidden force
         start = time.perf_counter()
         base = rank_missing_effects(Oscillator(zeta=0.3, omega0=1.8, gain=1.5), [], train, validation)
         discovery = discover_missing_force(base, train, validation)
