@@ -4,7 +4,8 @@
 
 Reads what the experiments wrote under ``--results`` (``demo/diagnosis.json``,
 ``paper/results.json``, ``contrast/contrast.json``, ``discovery/discovery_cases.json``,
-``silverbox/silverbox.json``, ``cascaded_tanks/cascaded_tanks.json``, ``boucwen/boucwen.json``) and prints one markdown table
+``silverbox/silverbox.json``, ``cascaded_tanks/cascaded_tanks.json``, ``boucwen/boucwen.json``, and the worst-case
+benchmark's ``bench_worst_case.json``) and prints one markdown table
 per file found. With ``--write PAGE ...`` it replaces, in each page, the text between
 ``<!-- table:NAME -->`` and ``<!-- /table:NAME -->`` by the table NAME, and leaves the tables whose JSON
 is missing as they are. ``make tables`` writes every page of the docs that holds such markers.
@@ -81,6 +82,28 @@ def boucwen(b: dict) -> str:
     return "\n".join(lines) + f"\n\nFound: {', '.join(b['found']) or 'nothing'}; {b['seconds']:.0f} s."
 
 
+def worst_case(report: dict) -> str:
+    """``benchmarks/bench_worst_case.py``'s file: per length and rung, its fit, the slowest refit and its ratio, how many
+    refits the gate would run, and the undecided; then the discovery case."""
+    lines = ["| samples | rung | rung's fit | slowest refit | its ratio to the fit | the gate refits | undecided |",
+             "|---|---|---|---|---|---|---|"]
+    for samples, length in report["lengths"].items():
+        rungs = dict.fromkeys(c["rung"] for c in length["refits"])
+        for rung in rungs:
+            rows = [c for c in length["refits"] if c["rung"] == rung]
+            slow = max(rows, key=lambda c: c["seconds"])
+            undecided = ", ".join(f"{c['effect']} ({c['seconds']:.1f} s)" for c in rows if c["outcome"] == "undecided")
+            lines.append(f"| {int(samples):,} | {rung} | {rows[0]['rung_fit']:.2f} s | {slow['effect']} {slow['seconds']:.2f} s "
+                         f"| {slow['seconds'] / slow['rung_fit']:.0f}x | {sum(c['gate_refits'] for c in rows)} of "
+                         f"{len(rows)} | {undecided or 'none'} |")
+    found = report.get("discovery")
+    if found:
+        lines += ["", f"Discovery on {found['rung']} ({found['samples']:,} samples): {found['seconds']:.0f} s, "
+                      f"{found['screened']} terms screened, `{found['discovery']}`; undecided: "
+                      f"{'; '.join(found['undecided']) or 'none'}."]
+    return "\n".join(lines)
+
+
 TABLES: dict[str, tuple[str, Callable]] = {
     "demo": ("demo/diagnosis.json", demo),
     "paper": ("paper/results.json", paper_table),
@@ -89,6 +112,7 @@ TABLES: dict[str, tuple[str, Callable]] = {
     "silverbox": ("silverbox/silverbox.json", silverbox),
     "tanks": ("cascaded_tanks/cascaded_tanks.json", tanks),
     "boucwen": ("boucwen/boucwen.json", boucwen),
+    "worst_case": ("bench_worst_case.json", worst_case),
 }
 
 

@@ -175,11 +175,16 @@ def test_an_effect_with_states_but_no_dynamics_is_refused_by_name():
         simulate(Oscillator() + Forgetful(), torch.arange(5.0), torch.zeros(1, 5, 1), solver=RK4(substeps=1))
 
 
-def test_lugres_coulomb_deflection_is_bounded_at_what_the_sampling_resolves_unless_given():
+def test_the_memory_effects_are_bounded_at_what_the_sampling_resolves_unless_given():
     t = torch.linspace(0.0, 1.0, 11)
     record = Experiment(t, torch.zeros(11, 1), (t**2)[:, None], "r")  # the largest change over a sample: 0.19
     assert DynamicFriction().bounds([record]) == {"zc": (pytest.approx(0.095), float("inf"))}
     zc, = (value for name, value in DynamicFriction().starts([record])[0].items() if name == "zc")
     assert zc > 0.095  # the start lies inside the bound
     assert DynamicFriction(zc=0.01).bounds([record]) == {}  # the user's own value is not bounded
-    assert Hysteresis().bounds([record]) == {}
+    assert Hysteresis(gamma=1.0).bounds([record]) == {}  # a loop shape the user chose
+    limit = 2 / 0.19  # twice over the largest change over a sample (below the RMS of y here)
+    bounds = Hysteresis().bounds([record])
+    assert sorted(bounds) == ["delta", "gamma"]
+    assert all(value == pytest.approx((-limit, limit)) for value in bounds.values())
+    assert all(abs(start["gamma"]) < limit and abs(start["delta"]) < limit for start in Hysteresis().starts([record]))
