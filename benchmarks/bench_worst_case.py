@@ -155,7 +155,7 @@ def discovery_case(samples: int) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--lengths", type=int, nargs="+", default=[4001, 60001])
+    parser.add_argument("--lengths", type=int, nargs="*", default=[4001, 60001], help="record lengths (none: the discovery alone)")
     parser.add_argument("--rungs", nargs="+", default=None, help="only the rungs whose name contains one of these")
     parser.add_argument("--discovery-samples", type=int, default=25001, help="the discovery case's length (0: none)")
     parser.add_argument("--out", default="results/bench_worst_case.json")
