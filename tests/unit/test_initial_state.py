@@ -46,3 +46,16 @@ def test_only_the_initial_state_when_no_parameter_is_learnable():
 def test_an_unknown_initial_state_option_is_refused():
     with pytest.raises(ValueError, match="'rest' or 'estimate'"):
         fit_physics(Oscillator(), _record(Oscillator()), initial_state="zero")
+
+
+def test_starting_guesses_of_the_initial_states_go_to_the_first_rung_and_the_ladder_climbs_on():
+    """``diagnose(..., start_states=)`` with an effect added: the guesses start the first rung's fit only (each next
+    rung starts from its refit's states), and the ladder does not stop on them."""
+    from torchpaml import diagnose
+
+    truth = Oscillator(0.2, 2.0, 4.0, learn=()) + CubicStiffness(1.5)
+    train, validation = _record(truth), _record(truth, seed=1)
+    diagnosis = diagnose(Oscillator(0.4, 1.8, 3.0, learn=("zeta", "omega0", "gain")), [CubicStiffness()], train,
+                         validation, initial_state="estimate", start_states=[X0[0]])
+    assert diagnosis.ladder.added == ["cubic_stiffness"]
+    assert diagnosis.ladder.final.train_states[0] == pytest.approx(X0[0], abs=1e-5)

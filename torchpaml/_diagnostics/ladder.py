@@ -46,11 +46,14 @@ def model_ladder(
     max_steps: int | None = None,
     **ranking_options,
 ) -> Ladder:
-    """Climb the ladder (module docstring); ``ranking_options`` go to :func:`rank_missing_effects`.
+    """Climb the ladder (module docstring); ``ranking_options`` go to :func:`rank_missing_effects` (``start_states``,
+    the training records' starting guesses of the initial states, to the first rung's only).
 
     ``max_steps`` bounds the number of effects added (default: as many as keep helping).
     """
-    ranking = rank_missing_effects(physics, candidates, train, validation, **ranking_options)
+    first_starts = ranking_options.pop("start_states", None)  # the first rung's; each next rung starts from its refit
+    ranking = rank_missing_effects(physics, candidates, train, validation, start_states=first_starts,
+                                   **ranking_options)
     steps, added, rankings = [ranking.baseline], [], [ranking]
     while ranking.recommended is not None and (max_steps is None or len(added) < max_steps):
         best = ranking.recommended
