@@ -203,3 +203,21 @@ def test_candidates_that_do_not_apply_are_skipped_and_listed(duffing):
     ranking = rank_missing_effects(Spring(), [CubicStiffness(), PendulumRestoring()], *duffing, shortlist=1)
     assert list(ranking.skipped) == ["pendulum_restoring"] and "omega0" in ranking.skipped["pendulum_restoring"]
     assert [e.effect for e in ranking.entries] == ["cubic_stiffness"]
+
+
+def test_a_numerically_null_direction_of_the_physics_does_not_move_the_score():
+    """A column that repeats another up to rounding (a parameter at its constraint's limit, an exact degeneracy) adds a
+    direction the least squares would keep or drop by its last digits: the projection leaves it out."""
+    from torchpaml._diagnostics.ranking import NULL_DIRECTION, _beyond_physics
+
+    generator = torch.Generator().manual_seed(0)
+    J = torch.randn(500, 3, generator=generator, dtype=torch.float64)
+    d = torch.randn(500, generator=generator, dtype=torch.float64)
+    noise = torch.randn(500, generator=generator, dtype=torch.float64)
+    degenerate = torch.cat([J, (J[:, 0] + 1e-14 * noise)[:, None]], dim=1)
+    projected, energy = _beyond_physics(d, J)
+    again, again_energy = _beyond_physics(d, degenerate)
+    assert again_energy == pytest.approx(energy, rel=1e-9) and torch.allclose(again, projected, atol=1e-9)
+    full = d - degenerate @ torch.linalg.lstsq(degenerate, d[:, None], driver="gelsd", rcond=1e-16).solution[:, 0]
+    assert float(full @ full) < 0.999 * energy  # the full least squares spans the rounding's direction too
+    assert NULL_DIRECTION > 1e-14

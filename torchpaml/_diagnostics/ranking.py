@@ -7,8 +7,8 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
 2. **First-order score** (the tangent-space idea of Kuang & Lin). Each candidate $c$ is added at
    strength $k$; at $k = 0$ the model is unchanged. Its output direction is the secant
    $d_c = [\hat y(\delta) - \hat y(0)]/\|y\|$ for a small probe strength $\delta$. What the physics'
-   own parameters already explain is removed, $\tilde d_c = (I - J J^+)\, d_c$ (in the directions of $J$ that the
-   records determine: a combination they do not determine is left out, :func:`_determined`), and the score is the
+   own parameters already explain is removed, $\tilde d_c = (I - J J^+)\, d_c$ (the numerically null directions of
+   $J$ left out, so that rounding does not decide: :func:`_determined`), and the score is the
    share of the residual's energy that a step along $\tilde d_c$ removes:
 
    $$ s_c = \frac{(\tilde d_c^\top r)^2}{\|\tilde d_c\|^2\,\|r\|^2} \in [0, 1]. $$
@@ -59,7 +59,6 @@ from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._errors import ResolutionError, SimulationError
 from torchpaml._budget import REFIT_BUDGET, Budget, OverBudget
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
-from torchpaml._fit.uncertainty import COLLINEARITY_LIMIT
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import unphysical_values
 from torchpaml._simulate.records import simulate_record
@@ -81,6 +80,9 @@ REFIT_CRITERION_STEP = 0.1
 #: A candidate is refitted only if its first-order score, multiplied by this margin, could pass the rule
 #: (:func:`_cannot_pass`): a refit may explain more than the first-order step, by this factor at most.
 GATE_MARGIN = 4.0
+#: A direction of the physics' unit-scaled Jacobian whose singular value is below this share of the largest is
+#: numerically null (:func:`_determined`).
+NULL_DIRECTION = 1e-10
 
 
 @dataclass
@@ -212,24 +214,31 @@ class _Engines:
 
 
 def _determined(J: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-    r"""The directions of the physics' unit-scaled Jacobian that the records determine: $J D^{-1} = U S V^\top$
-    ($D$ the columns' norms) truncated to the singular values of at least $1/$:data:`COLLINEARITY_LIMIT`, as
-    discovery's projection and the identifiability check take them. Returns $U_k$ (samples, k), $S_k$, $V_k^\top$
-    (k, unknowns) and $D$.
+    r"""The directions of the physics' unit-scaled Jacobian that are not numerically null: $J D^{-1} = U S V^\top$
+    ($D$ the columns' norms) truncated to the singular values of at least :data:`NULL_DIRECTION` times the largest.
+    Returns $U_k$ (samples, k), $S_k$, $V_k^\top$ (k, unknowns) and $D$.
 
-    Along a combination of the parameters that the records do not determine (the linear tanks' double pole), the
-    least squares of the full $J$ depends on its last digits, which move with the solver's warm start: the tanks'
-    third rung scored the same candidate 0.35, 0.61 and 0.73 in three runs of one code. The truncated one does not."""
+    A parameter that does not move the output (one at the limit of its constraint) or an exact degeneracy leaves a
+    singular value at the rounding level (1e-18 on the cascaded tanks' third rung), and a least squares of the full
+    $J$ keeps or drops that direction by its last digits, which move with the process's memory layout: there, runs
+    with PYTHONHASHSEED 0 and 1 scored the same candidate 0.61 and 0.35 and climbed different ladders. Cut at
+    1e-10, both score 0.73."""
     scale = J.norm(dim=0).clamp_min(1e-300)
     U, S, Vh = torch.linalg.svd(J / scale, full_matrices=False)
-    keep = S * COLLINEARITY_LIMIT >= 1
+    keep = S >= NULL_DIRECTION * S[0] if len(S) else S > 0
     return U[:, keep], S[keep], Vh[keep], scale
+
+
+def _physics_step(J: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    r"""$-J^+ v$ (unknowns,): the Gauss-Newton step of the physics' own unknowns that removes ``v`` (samples,), by the
+    pseudo-inverse of :func:`_determined`'s directions (none along a numerically null one)."""
+    U, S, Vh, scale = _determined(J)
+    return -(Vh.T @ ((U.T @ v) / S)) / scale
 
 
 def _beyond_physics(d: torch.Tensor, J: torch.Tensor) -> tuple[torch.Tensor, float]:
     r"""$\tilde d = (I - U_k U_k^\top) d$, the part of the output direction ``d`` (samples,) that the physics' own
-    parameters (``J``'s columns, in the directions the records determine: :func:`_determined`) cannot make, and its
-    energy $\|\tilde d\|^2$."""
+    parameters (``J``'s columns, :func:`_determined`) cannot make, and its energy $\|\tilde d\|^2$."""
     Q = _determined(J)[0]
     projected = d - Q @ (Q.T @ d)
     return projected, float(projected @ projected)
@@ -283,7 +292,7 @@ def _first_order(extended, name: str, fit: PhysicsEstimate, scale: float, probe:
     if one_sided and beta <= 0:
         return 0.0, order, probe, still
     score = _share(projected, energy, r)
-    move = -torch.linalg.lstsq(J, (r - beta * d1)[:, None]).solution[:, 0]
+    move = _physics_step(J, r - beta * d1)
     return score, order, probe * (beta if order == 1 else beta ** (1 / order)), move
 
 
