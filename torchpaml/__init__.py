@@ -38,7 +38,7 @@ from torchpaml._diagnostics import (
     residual_analysis,
     validity_map,
 )
-from torchpaml._errors import DataError, DomainError, ResolutionError, SimulationError
+from torchpaml._errors import DataError, DomainError, PhysicsError, ResolutionError, SimulationError
 from torchpaml._fit import (
     PhysicsEstimate,
     ResidualEstimate,
@@ -252,6 +252,7 @@ __all__ = [
     "DomainError",
     "ResolutionError",
     "SimulationError",
+    "PhysicsError",
 ]
 
 #: Names whose module imports Lightning: loaded on first access, so that ``import torchpaml`` stays light.
