@@ -65,12 +65,19 @@ def silverbox(s: dict) -> str:
     return "\n".join(lines) + f"\n\nFound: {', '.join(s['found'])}; {s['seconds']:.0f} s.{discovered}"
 
 
+def _expression(expression: str | dict[str, str]) -> str:
+    """A closed form as written in markdown: one expression, or ``equation: expression`` per equation."""
+    if isinstance(expression, str):
+        return f"`{expression}`"
+    return ", ".join(f"`{equation}`: `{text}`" for equation, text in expression.items())
+
+
 def tanks(t: dict) -> str:
     lines = ["| model | test RMSE |", "|---|---|"]
     lines += [f"| {m['model']} | {m['rmse']['test']:.3f} V |" for m in t["models"]]
     found = t.get("discovery")
     discovered = "" if found is None else (
-        f" Discovery alone on the linear TwoTanks (`--discover`): `{found['expression']}`, test RMSE "
+        f" Discovery alone on the linear TwoTanks (`--discover`): {_expression(found['expression'])}, test RMSE "
         f"{found['rmse']['test']:.3f} V.")
     return "\n".join(lines) + f"\n\nFound: {', '.join(t['found'])}; {t['seconds']:.0f} s.{discovered}"
 
@@ -80,6 +87,10 @@ def boucwen(b: dict) -> str:
     lines += [f"| {m['model']} | {m['rmse']['test_multisine']:.2e} m | {m['rmse']['test_sinesweep']:.2e} m |"
               for m in b["models"]]
     return "\n".join(lines) + f"\n\nFound: {', '.join(b['found']) or 'nothing'}; {b['seconds']:.0f} s."
+
+
+def _ratio(value: float) -> str:
+    return f"{value:.1f}x" if value < 10 else f"{value:.0f}x"
 
 
 def worst_case(report: dict) -> str:
@@ -94,7 +105,7 @@ def worst_case(report: dict) -> str:
             slow = max(rows, key=lambda c: c["seconds"])
             undecided = ", ".join(f"{c['effect']} ({c['seconds']:.1f} s)" for c in rows if c["outcome"] == "undecided")
             lines.append(f"| {int(samples):,} | {rung} | {rows[0]['rung_fit']:.2f} s | {slow['effect']} {slow['seconds']:.2f} s "
-                         f"| {slow['seconds'] / slow['rung_fit']:.0f}x | {sum(c['gate_refits'] for c in rows)} of "
+                         f"| {_ratio(slow['seconds'] / slow['rung_fit'])} | {sum(c['gate_refits'] for c in rows)} of "
                          f"{len(rows)} | {undecided or 'none'} |")
     found = report.get("discovery")
     if found:
