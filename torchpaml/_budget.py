@@ -10,15 +10,16 @@ While a fit evaluates, its budget is the *active* one (:meth:`Budget.active`), a
 :func:`checkpoint` at every Newton sweep: an evaluation that runs away inside the engine (Newton that does not settle
 and lengthens its segments towards sequential stepping) stops there too, not only between evaluations.
 
-The limit is the larger of a time in seconds and a count of evaluations at the fit's own first evaluation's cost,
+The limit is the larger of a time in seconds and a count of evaluations at the fit's own cost per evaluation,
 capped by an absolute deadline:
 
 $$ \text{limit} = \min\big(\max(T,\; E\,t_1),\; t_{\text{deadline}} - t_{\text{start}}\big), $$
 
-where $t_1$ is the first evaluation's time; until that evaluation ends, the deadline alone limits the fit.
+where $t_1$ is the costliest of the fit's first :data:`SCALE_EVALUATIONS` evaluations; until the first one ends, the
+deadline alone limits the fit.
 
 The ranking gives each refit $T = 10\,t_{\text{fit}}$, ten times its rung's own fit, and $E = 10\,n_{\max}$, ten full
-refits (``max_nfev`` evaluations each) at the refit's own first cost per evaluation (:data:`REFIT_BUDGET`). The
+refits (``max_nfev`` evaluations each) at the refit's own cost per evaluation (:data:`REFIT_BUDGET`). The
 second term matters where the rung simulates on a cheaper path than the refit (a linear rung's exact path). So the
 budget binds where a refit's evaluations grow far costlier than its first (its parameters drift towards a stiff
 or unsettled model) or it needs far more of them than a fit may take, and not where a refit merely runs on the
@@ -43,6 +44,10 @@ log = logging.getLogger(__name__)
 PROGRESS_SECONDS = 5.0
 #: A ranking's refit may take this many times its rung's own fit (module docstring).
 REFIT_BUDGET = 10.0
+#: $t_1$ is the costliest of a fit's first this many evaluations: the step check at a fit's start may raise the
+#: substeps after the first one (a discovery screen of the pendulum was stopped at 0.5 s, 100 times a first
+#: evaluation that the next ones outcost).
+SCALE_EVALUATIONS = 3
 
 
 _ACTIVE: contextvars.ContextVar[Budget | None] = contextvars.ContextVar("torchpaml_budget", default=None)
@@ -122,8 +127,8 @@ class Budget:
         """Report an evaluation whose fit's lowest cost so far is ``cost``: log progress every :data:`PROGRESS_SECONDS`
         (the evaluations of every fit under this budget, counted together), raise :class:`OverBudget` past the limit."""
         self.count += 1
-        if self._first is None:
-            self._first = evaluation_seconds
+        if self.count <= SCALE_EVALUATIONS:  # the scale: the costliest of the first few evaluations
+            self._first = max(self._first or 0.0, evaluation_seconds)
         elapsed = self.elapsed
         limit = self.limit
         if elapsed - self._reported >= PROGRESS_SECONDS:

@@ -55,6 +55,11 @@ def test_the_limit_counts_evaluations_at_the_first_ones_cost_and_the_deadline_ca
     assert budget.limit == math.inf  # until the first evaluation has ended, the deadline alone
     budget.check(0.5, evaluation_seconds=0.3)
     assert budget.limit == pytest.approx(3.0)  # 10 evaluations at 0.3 s
+    budget.check(0.5, evaluation_seconds=0.5)
+    assert budget.limit == pytest.approx(5.0)  # the costliest of the first three evaluations sets the scale
+    budget.check(0.5, evaluation_seconds=0.1)
+    budget.check(0.5, evaluation_seconds=9.0)
+    assert budget.limit == pytest.approx(5.0)  # a later evaluation does not: a runaway is not its own yardstick
     quick = Budget("x", seconds=1.0, evaluations=10.0)
     quick.check(0.5, evaluation_seconds=0.01)
     assert quick.limit == 1.0  # the seconds, where they are longer

@@ -233,7 +233,7 @@ def discover_missing_force(
         seed: seed of the network's initial weights.
         deadline: a ``time.perf_counter()`` time by which the search by refits ends (the diagnosis' ``budget``).
             Each fit has its own budget too: :data:`~torchpaml._budget.REFIT_BUDGET` times its evaluation limit at
-            its first evaluation's cost. A form stopped by either is named in ``Discovery.undecided``.
+            the cost of its first evaluations. A form stopped by either is named in ``Discovery.undecided``.
     """
     train, validation = as_records(train), as_records(validation)
     library, regression = library or TermLibrary(), regression or SparseRegression()

@@ -539,7 +539,7 @@ def rank_missing_effects(
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
         refit_budget: each refit may take this many times the rung's own fit in seconds, or this many times
-            ``max_nfev`` evaluations at the refit's own first evaluation's cost, whichever is longer
+            ``max_nfev`` evaluations at the refit's own cost per evaluation, whichever is longer
             (:mod:`torchpaml._budget`); one over it is reported undecided (``EffectEvidence.undecided``).
         deadline: a ``time.perf_counter()`` time by which every refit must end (the diagnosis' ``budget``).
     """
