@@ -309,7 +309,7 @@ def _linear_states(physics, n: int) -> int:
 
 
 class _NotConverged(Exception):
-    """Newton did not converge within its sweeps: :func:`simulate_rk4` retries with longer segments."""
+    """Newton did not converge within its sweeps: :func:`solve_shooting` retries with longer segments."""
 
 
 class ShootingSolution:
