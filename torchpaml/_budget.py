@@ -75,8 +75,8 @@ class Budget:
     Args:
         label: what the progress lines call the fit, e.g. ``"refitting Pendulum + dynamic_friction"``.
         seconds: $T$, the limit in seconds (default none).
-        evaluations: $E$, the limit in evaluations at the cost of the first one (default none). With neither, only
-            the deadline limits the fit.
+        evaluations: $E$, the limit in evaluations at the fit's cost per evaluation, $t_1$ (default none). With
+            neither, only the deadline limits the fit.
         deadline: an absolute ``time.perf_counter()`` by which the fit must end (default none).
     """
 
@@ -86,7 +86,7 @@ class Budget:
     deadline: float = math.inf
     started: float = field(default_factory=time.perf_counter, init=False)
     count: int = field(default=0, init=False)
-    _first: float | None = field(default=None, init=False, repr=False)
+    _scale: float | None = field(default=None, init=False, repr=False)
     _reported: float = field(default=0.0, init=False, repr=False)
 
     @property
@@ -99,9 +99,13 @@ class Budget:
         """The limit in seconds. Until the first evaluation has ended, the deadline alone: that evaluation sets the
         scale of $E$, and a first evaluation cut short would leave a refit undecided on a machine that is merely slow."""
         cap = self.deadline - self.started
-        if self._first is None or (self.seconds is None and self.evaluations is None):
+        if self._scale is None or (self.seconds is None and self.evaluations is None):
             return cap
-        return min(max(self.seconds or 0.0, (self.evaluations or 0.0) * self._first), cap)
+        return min(max(self.seconds or 0.0, (self.evaluations or 0.0) * self._scale), cap)
+
+    def restarted(self, label: str) -> Budget:
+        """A budget with these limits, for another fit called ``label``, counted from now."""
+        return Budget(label, self.seconds, self.evaluations, self.deadline)
 
     @property
     def expired(self) -> bool:
@@ -128,7 +132,7 @@ class Budget:
         (the evaluations of every fit under this budget, counted together), raise :class:`OverBudget` past the limit."""
         self.count += 1
         if self.count <= SCALE_EVALUATIONS:  # the scale: the costliest of the first few evaluations
-            self._first = max(self._first or 0.0, evaluation_seconds)
+            self._scale = max(self._scale or 0.0, evaluation_seconds)
         elapsed = self.elapsed
         limit = self.limit
         if elapsed - self._reported >= PROGRESS_SECONDS:

@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import logging
 import math
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -310,13 +309,13 @@ def discover_missing_force(
         short = {}
         extras = [pairs[i] for i in usable if pairs[i] not in base and base + [pairs[i]] != proposed]  # refitted already
         for i, extra in enumerate(extras, 1):
-            if time.perf_counter() >= end:
+            budget = Budget(f"discovery: screening {extra[1]}", evaluations=REFIT_BUDGET * SCREEN_NFEV, deadline=end)
+            if budget.expired:
                 undecided.append(f"the screen beside [{', '.join(t for _, t in base)}]: the diagnosis' budget was "
                                  f"spent after {i - 1} of {len(extras)} terms")
                 break
             kept = base + [extra]
             log.info("discovery: screening %d of %d: %s (%s)", i, len(extras), extra[1], extra[0])
-            budget = Budget(f"discovery: screening {extra[1]}", evaluations=REFIT_BUDGET * SCREEN_NFEV, deadline=end)
             try:
                 fitted = fit_closed_form(physics, kept, first_order(kept) or [*starts, 0.0], data.widths, train,
                                          SCREEN_NFEV, initial_state, budget)

@@ -213,6 +213,7 @@ class _Engines:
         return None if engine is None else (engine, engine.outputs(self.base) / self.scale)
 
 
+@functools.lru_cache(maxsize=1)  # one rung's Jacobian, decomposed once for every candidate's probes (a tensor hashes by id)
 def _determined(J: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
     r"""The directions of the physics' unit-scaled Jacobian that are not numerically null: $J D^{-1} = U S V^\top$
     ($D$ the columns' norms) truncated to the singular values of at least :data:`NULL_DIRECTION` times the largest.
@@ -476,8 +477,7 @@ class _Refits:
 
     def budget(self, effect: str) -> Budget:
         """A fresh budget for the refit of ``effect``, with the rung's limits."""
-        t = self.template
-        return Budget(f"refitting {self.name} + {effect}", t.seconds, t.evaluations, t.deadline)
+        return self.template.restarted(f"refitting {self.name} + {effect}")
 
     def run(self, entry: EffectEvidence, extended, strength: str, move: torch.Tensor,
             bounds: dict[str, tuple[float, float]]) -> None:
