@@ -11,7 +11,7 @@ Everything a user calls is exported here; the modules behind it are private. The
 import importlib
 
 from torchpaml._certificates import Certificate, incompatibility_certificates
-from torchpaml._data import Experiment, ExperimentSource, Files, Simulated
+from torchpaml._data import Experiment, ExperimentSource, Files, Simulated, simulate_record
 from torchpaml._diagnostics import (
     SelectionRule,
     Adequacy,
@@ -111,7 +111,6 @@ from torchpaml._simulate import (
     iir_filter,
     output_jacobian,
     simulate,
-    simulate_record,
 )
 
 __all__ = [

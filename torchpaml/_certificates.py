@@ -27,6 +27,8 @@ from torch import nn
 
 from torchpaml._residual import ChebyshevHammerstein, MLPResidual
 from torchpaml._signals import cosine, time_grid
+from torchpaml._simulate.simulator import simulate
+from torchpaml._simulate.solvers import Solver
 
 __all__ = ["Certificate", "incompatibility_certificates", "draw_chebyshev", "draw_mlp"]
 
@@ -69,12 +71,12 @@ def _normalised(a: torch.Tensor, b: torch.Tensor) -> float:
     return float((a * b).sum() / (torch.linalg.vector_norm(a) * torch.linalg.vector_norm(b)))
 
 
-def _sensitivity(physics, parameter: str, theta: float, step: float, t, u, y) -> torch.Tensor:
+def _sensitivity(physics, parameter: str, theta: float, step: float, t, u, y, solver: Solver | None) -> torch.Tensor:
     r"""$\partial_\theta \mathcal H^\theta[u]$ by central differences; one-sided where θ ± step leaves the constraint."""
     points = []
     for shift in (step, -step):
         try:
-            points.append((shift, physics.assign(**{parameter: theta + shift})(t, u)))
+            points.append((shift, simulate(physics.assign(**{parameter: theta + shift}), t, u, solver=solver)))
         except ValueError:  # θ sits on a bound of its constraint: use the side that stays inside
             points.append((0.0, y))
     physics.assign(**{parameter: theta})
@@ -94,6 +96,7 @@ def incompatibility_certificates(
     samples_per_period: int = 628,
     draws: int = 20,
     seed: int = 0,
+    solver: Solver | None = None,
 ) -> Certificate:
     r"""|c0|, |c1| (module docstring) for ``draws`` residuals ``draw(generator)`` on $u = \\alpha\\cos\\omega t$.
 
@@ -104,6 +107,8 @@ def incompatibility_certificates(
         duration: record length T in s; ``transient`` (default T/2) is discarded, and the window is
             the last whole number of drive periods that fits after it.
         samples_per_period: sampling, $\Delta t = 2\pi / (\omega \cdot$ ``samples_per_period``$)$.
+        solver: how the physics is simulated (:func:`~torchpaml.simulate`; a fit's ``PhysicsEstimate.solver``),
+            default ``Auto()``.
     """
     period = 2 * math.pi / omega
     dt = period / samples_per_period
@@ -119,8 +124,8 @@ def incompatibility_certificates(
     theta = physics.physical_parameters()[parameter]
     step = 1e-6 * max(1.0, abs(theta))
     with torch.no_grad():
-        y = physics(t, u)
-        sensitivity = _sensitivity(physics, parameter, theta, step, t, u, y)
+        y = simulate(physics, t, u, solver=solver)
+        sensitivity = _sensitivity(physics, parameter, theta, step, t, u, y, solver)
         generator = torch.Generator().manual_seed(seed)
         zeroth, first = [], []
         for _ in range(draws):

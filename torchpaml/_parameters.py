@@ -27,9 +27,9 @@ __all__ = [
     "Real",
     "describe_parameters",
     "format_table",
-    "record_uncertainty",
     "register_parameters",
     "unphysical_values",
+    "with_uncertainty",
 ]
 
 
@@ -129,11 +129,8 @@ def register_parameters(module: nn.Module, declarations: list[PhysicalParameter]
 
 
 def describe_parameters(module: nn.Module, prefix: str = "") -> list[dict]:
-    """Rows ``{name, value, unit, constraint, learnable, meaning}`` for every physical parameter below ``module``.
-
-    A parameter whose last fit recorded its uncertainty (:func:`record_uncertainty`) also has
-    ``std`` and ``interval`` (the 95 % confidence interval).
-    """
+    """Rows ``{name, value, unit, constraint, learnable, meaning}`` (and ``physical``, where declared) for every
+    physical parameter below ``module``; :func:`with_uncertainty` adds a fit's."""
     rows = []
     for path, sub in module.named_modules():
         for name, decl in getattr(sub, "_physical", {}).items():
@@ -148,8 +145,6 @@ def describe_parameters(module: nn.Module, prefix: str = "") -> list[dict]:
             }
             if decl.physical is not None:
                 row["physical"] = decl.physical
-            if name in getattr(sub, "_uncertainty", {}):
-                row["std"], row["interval"] = sub._uncertainty[name]
             rows.append(row)
     return rows
 
@@ -173,18 +168,10 @@ def unphysical_values(rows: list[dict]) -> list[str]:
     return messages
 
 
-def record_uncertainty(physics: nn.Module, std: dict[str, float], interval: dict[str, tuple[float, float]]) -> None:
-    """Attach a fit's standard errors and 95 % intervals to ``physics``' parameters (names as ``physics`` reads them).
-
-    Every earlier record below ``physics`` is dropped first, so fixed parameters carry none;
-    assigning a parameter drops its own.
-    """
-    for sub in physics.modules():
-        if hasattr(sub, "_uncertainty"):
-            del sub._uncertainty
-    for name, value in std.items():
-        owner, leaf = physics._owner(name)
-        owner.__dict__.setdefault("_uncertainty", {})[leaf] = (value, interval[name])
+def with_uncertainty(rows: list[dict], std: dict[str, float], interval: dict[str, tuple[float, float]]) -> list[dict]:
+    """``rows`` (of :func:`describe_parameters`) with a fit's standard errors ``std`` and 95 % intervals ``interval``
+    (``PhysicsEstimate.uncertainty``'s) on the parameters it fitted."""
+    return [{**r, "std": std[r["name"]], "interval": interval[r["name"]]} if r["name"] in std else r for r in rows]
 
 
 def format_table(rows: list[dict]) -> str:

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import torch
 
-from torchpaml import default_effects, diagnose, diagnosis_to_dict, Experiment, simulate_record, write_report
+from torchpaml import Solver, default_effects, diagnose, diagnosis_to_dict, Experiment, simulate_record, write_report
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mass_spring_damper import frequency_response_start  # noqa: E402  (the user's physics, beside this script)
@@ -47,19 +47,21 @@ TRAIN = "train_multisine_forgione"
 TESTS = ("test_multisine", "test_sinesweep")
 
 
-def steady_state_error(model, record: Experiment) -> torch.Tensor:
-    """The error (time,) of ``model`` on one period of a periodic record, in the steady state: the period's input
-    applied twice from rest, the second period compared."""
+def steady_state_error(model, record: Experiment, solver: Solver | None = None) -> torch.Tensor:
+    """The error (time,) of a fitted model on one period of a periodic record, in the steady state: the period's input
+    applied twice from rest, the second period compared; ``solver``: the one its fit resolved."""
     n = len(record.t)
     twice = Experiment(torch.cat([record.t, record.t + n * record.dt]), torch.cat([record.u, record.u]),
                        torch.cat([record.y, record.y]), name=record.name)
-    return (record.y - simulate_record(model, twice)[0][n:])[:, 0]
+    return (record.y - simulate_record(model, twice, solver=solver)[0][n:])[:, 0]
 
 
-def test_rmse(model, tests: dict[str, Experiment]) -> dict[str, float]:
-    """RMSE in m on each test record: the multisine in its periodic steady state, the sweep from rest."""
-    errors = {"test_multisine": steady_state_error(model, tests["test_multisine"]),
-              "test_sinesweep": (tests["test_sinesweep"].y - simulate_record(model, tests["test_sinesweep"])[0])[:, 0]}
+def test_rmse(model, tests: dict[str, Experiment], solver: Solver | None = None) -> dict[str, float]:
+    """RMSE in m of a fitted model on each test record: the multisine in its periodic steady state, the sweep from
+    rest; ``solver``: the one its fit resolved (``PhysicsEstimate.solver``)."""
+    sweep = tests["test_sinesweep"]
+    errors = {"test_multisine": steady_state_error(model, tests["test_multisine"], solver),
+              "test_sinesweep": (sweep.y - simulate_record(model, sweep, solver=solver)[0])[:, 0]}
     return {name: float(error.square().mean().sqrt()) for name, error in errors.items()}
 
 
@@ -80,9 +82,9 @@ def main(argv: list[str] | None = None) -> dict:
     models = []
     content = diagnosis_to_dict(diagnosis)
     for step, rung in zip(diagnosis.ladder.steps, content["ladder"], strict=True):
-        rmse = test_rmse(step.model, tests)
+        rmse = test_rmse(step.model, tests, step.solver)
         models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
-                       "uncertainty": rung["uncertainty"], "substeps": step.model.solver.substeps, "rmse": rmse})
+                       "uncertainty": rung["uncertainty"], "substeps": step.solver.substeps, "rmse": rmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3e} m" for k, v in rmse.items()), flush=True)
     result = {"found": diagnosis.ladder.added, "models": models, "hybrid": content["hybrid"],
               "seconds": time.perf_counter() - start}

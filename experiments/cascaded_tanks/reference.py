@@ -36,8 +36,8 @@ def benchmark_model():
             + SensorClip(1.0, learn=()))
 
 
-def rmse(model, record: Experiment, x0) -> float:
-    return float((record.y - simulate_record(model, record, x0)[0]).square().mean().sqrt())
+def rmse(model, record: Experiment, x0, solver) -> float:
+    return float((record.y - simulate_record(model, record, x0, solver=solver)[0]).square().mean().sqrt())
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> dict:
         fit = fit_physics(model, estimation, initial_state="estimate", max_nfev=100)
     x0 = fit.initial_states[0]
     result = {"parameters": fit.parameters, "initial_state": x0.tolist(),
-              "rmse": {"estimation": rmse(model, estimation, x0), "test": rmse(model, test, x0)}}
+              "rmse": {"estimation": rmse(model, estimation, x0, fit.solver), "test": rmse(model, test, x0, fit.solver)}}
     print(result)
     return result
 

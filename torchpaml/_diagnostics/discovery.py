@@ -57,14 +57,14 @@ from torchpaml._diagnostics.closed_form import fit_closed_form, refit_closed_for
 from torchpaml._diagnostics.ranking import EffectEvidence, ModelScore, Ranking, as_records
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._budget import REFIT_BUDGET, Budget, OverBudget
-from torchpaml._fit.neural_force import fit_neural_force
+from torchpaml._fit.neural_force import NeuralForceFit, fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
 from torchpaml._fit.uncertainty import COLLINEARITY_LIMIT
 from torchpaml._metrics import mismatch
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import TermLibrary, compile_term, state_columns, variables_of, width_symbol
-from torchpaml._simulate.probes import assigned
-from torchpaml._simulate.records import record_jacobian, record_response, record_states, simulate_record
+from torchpaml._diagnostics.probes import assigned
+from torchpaml._data.simulation import record_jacobian, record_response, record_states, simulate_record
 
 __all__ = ["Discovery", "discover_missing_force", "width_range"]
 
@@ -137,11 +137,14 @@ class _Columns:
     widths: dict[str, tuple[float, float]]
 
 
-def _columns(neural, physics, terms: list[str], equations: dict[str, int], variables: tuple[str, ...],
-             train: Sequence[Experiment], starts: Sequence[torch.Tensor], estimate: bool) -> _Columns:
-    """:class:`_Columns` along the neural model's trajectories (module docstring, step 2)."""
+def _columns(neural: NeuralForceFit, baseline: ModelScore, terms: list[str], equations: dict[str, int],
+             variables: tuple[str, ...], train: Sequence[Experiment], estimate: bool) -> _Columns:
+    """:class:`_Columns` along the neural model's trajectories (module docstring, step 2), around the fitted physics
+    of ``baseline`` from its training records' initial states."""
+    physics, solver, starts = baseline.model, baseline.solver, baseline.train_states
     compiled = [compile_term(t, variables) for t in terms]
-    trajectories = [record_states(neural, record, x0) for record, x0 in zip(train, starts, strict=True)]
+    trajectories = [record_states(neural.model, record, x0, neural.solver)
+                    for record, x0 in zip(train, starts, strict=True)]
     index = state_columns(physics)
     signs = sorted({w for c in compiled for w in c.widths})
     by_width = {width_symbol(s): s for s in index}
@@ -161,14 +164,14 @@ def _columns(neural, physics, terms: list[str], equations: dict[str, int], varia
                 rate[:, state] = term.evaluate(values)
                 rates.append(rate)
         with torch.no_grad():
-            learned = neural.learned(states, record.u)
-        responses = record_response(physics, record, x0, torch.stack([*rates, learned]))
+            learned = neural.model.learned(states, record.u)
+        responses = record_response(physics, record, x0, torch.stack([*rates, learned]), solver)
         parts["responses"].append(responses[:-1, :, 0].T)
         parts["learned"].append(responses[-1, :, 0])
-        y, J = record_jacobian(physics, names[:1], record, x0, initial_state=estimate) if estimate \
-            else (simulate_record(physics, record, x0), None)
+        y, J = record_jacobian(physics, names[:1], record, x0, initial_state=estimate, solver=solver) if estimate \
+            else (simulate_record(physics, record, x0, solver=solver), None)
         own = _own_sensitivities(physics, names, states, record.u)  # (N, n + n_output, p)
-        own_responses = record_response(physics, record, x0, own[:, :n].movedim(-1, 0))
+        own_responses = record_response(physics, record, x0, own[:, :n].movedim(-1, 0), solver)
         columns = own_responses[:, :, 0].T + own[:, n, :]
         if estimate:
             columns = torch.cat([columns, J[0, :, 0, len(names[:1]):]], dim=1)  # the initial states' free responses
@@ -244,14 +247,14 @@ def discover_missing_force(
     variables, equations = variables_of(physics)
     terms = library.build(physics)
     log.info("discovery: training a neural rate on %s", physics.display_name)
-    neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed)
+    neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed,
+                              solver=baseline.solver)
     with torch.no_grad():
         neural_validation = mismatch(torch.cat([r.y for r in validation]),
-                                     torch.cat([simulate_record(neural.model, r, x0)[0]
+                                     torch.cat([simulate_record(neural.model, r, x0, solver=neural.solver)[0]
                                                 for r, x0 in zip(validation, baseline.validation_states, strict=True)]))
     log.info("discovery: %d terms on %d equation(s) through the output", len(terms), len(equations))
-    data = _columns(neural.model, physics, terms, equations, variables, train, baseline.train_states,
-                    initial_state == "estimate")
+    data = _columns(neural, baseline, terms, equations, variables, train, initial_state == "estimate")
     J = data.jacobian
     U, S, _ = torch.linalg.svd(J / J.norm(dim=0).clamp_min(1e-300), full_matrices=False)
     Q = U[:, S * COLLINEARITY_LIMIT >= 1]  # what the physics makes by moves the records determine
@@ -293,7 +296,7 @@ def discover_missing_force(
         budget = Budget(f"discovery: refitting {form}", evaluations=REFIT_BUDGET * max_nfev, deadline=end)
         try:
             score = refit_closed_form(physics, kept, first_order(kept), data.widths, train, validation, rule,
-                                      max_nfev, initial_state, first_order, budget)
+                                      max_nfev, initial_state, first_order, budget, baseline.solver)
         except OverBudget as over:
             undecided.append(f"{form}: over budget ({over.seconds:.1f} s)")
             return None, None, f"its refit stopped over budget ({over.seconds:.1f} s)"
@@ -318,7 +321,7 @@ def discover_missing_force(
             log.info("discovery: screening %d of %d: %s (%s)", i, len(extras), extra[1], extra[0])
             try:
                 fitted = fit_closed_form(physics, kept, first_order(kept) or [*starts, 0.0], data.widths, train,
-                                         SCREEN_NFEV, initial_state, budget)
+                                         SCREEN_NFEV, initial_state, budget, baseline.solver)
             except OverBudget as over:
                 undecided.append(f"{', '.join(t for _, t in kept)}: screen over budget ({over.seconds:.1f} s)")
                 continue

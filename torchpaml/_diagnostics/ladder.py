@@ -62,7 +62,7 @@ def model_ladder(
         # the next rung's baseline is the refit's model fitted to the last digits (the refit stopped early)
         starts = best.refit.train_states if ranking_options.get("initial_state") == "estimate" else None
         ranking = rank_missing_effects(best.refit.model, [c for c in candidates if c.name in remaining], train,
-                                       validation, start_states=starts, **ranking_options)
+                                       validation, start_states=starts, solver=best.refit.solver, **ranking_options)
         steps.append(ranking.baseline)
         rankings.append(ranking)
     return Ladder(steps, added, rankings)

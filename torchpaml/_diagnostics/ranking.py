@@ -60,11 +60,11 @@ from torchpaml._errors import ResolutionError, SimulationError
 from torchpaml._budget import REFIT_BUDGET, Budget, OverBudget
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
 from torchpaml._metrics import mismatch
-from torchpaml._parameters import unphysical_values
-from torchpaml._simulate.records import simulate_record
+from torchpaml._parameters import unphysical_values, with_uncertainty
+from torchpaml._data.simulation import simulate_record
 from torchpaml._simulate.sensitivity import raw_parameters
-from torchpaml._simulate.solvers import engine_solver
-from torchpaml._simulate.probes import Secant, TangentLinear, assigned
+from torchpaml._simulate.solvers import Auto, Solver, continued, engine_solver
+from torchpaml._diagnostics.probes import Secant, TangentLinear, assigned
 from torchpaml._simulate.warm import WarmStart
 from torchpaml._physics.effects import AbstractEffect
 
@@ -91,7 +91,8 @@ class ModelScore:
 
     It carries what scoring computed: the initial states of the training and validation records, each
     (n_state,), and the model's output on each validation record, (time, n_y), so that what is drawn or
-    analysed later is the output that was scored.
+    analysed later is the output that was scored; the solver the fit resolved (``PhysicsEstimate.solver``: pass
+    it to simulate ``model`` as it was scored); and the 95 % ``interval`` of each fitted parameter.
     """
 
     name: str
@@ -106,6 +107,26 @@ class ModelScore:
     train_states: list[torch.Tensor] = field(default_factory=list, repr=False)
     validation_states: list[torch.Tensor] = field(default_factory=list, repr=False)
     validation_outputs: list[torch.Tensor] = field(default_factory=list, repr=False)
+    solver: Solver = field(default_factory=Auto, repr=False)
+    interval: dict[str, tuple[float, float]] = field(default_factory=dict, repr=False)
+
+    def rows(self) -> list[dict]:
+        """The model's parameter rows (:func:`~torchpaml._parameters.describe_parameters`) with the fit's standard
+        errors and 95 % intervals."""
+        return with_uncertainty(self.model._rows(), self.uncertainty, self.interval)
+
+    def describe(self) -> str:
+        """The model's parameter table with the fit's standard errors and 95 % intervals
+        (:meth:`~torchpaml.AbstractPhysics.describe`)."""
+        return self.model.describe(_Spread(self.uncertainty, self.interval))
+
+
+@dataclass(frozen=True)
+class _Spread:
+    """A fit's standard errors and intervals, as :meth:`~torchpaml.AbstractPhysics.describe` reads them."""
+
+    std: dict[str, float]
+    interval: dict[str, tuple[float, float]]
 
 
 @dataclass
@@ -174,10 +195,11 @@ def score_model(
     it (:func:`~torchpaml._fit.estimate_initial_state`, the parameters fixed), as MATLAB's ``compare`` does.
     """
     sse, n, norm = 0.0, 0, 0.0
-    starts = [estimate_initial_state(physics, r) if initial_state == "estimate" else None for r in validation]
+    starts = [estimate_initial_state(physics, r, solver=continued(fit.solver)) if initial_state == "estimate" else None
+              for r in validation]
     outputs = []
     for record, x0 in zip(validation, starts, strict=True):
-        y_model = simulate_record(physics, record, x0)[0]
+        y_model = simulate_record(physics, record, x0, solver=fit.solver)[0]
         outputs.append(y_model)
         sse += float(torch.sum((record.y - y_model) ** 2))
         norm += float(torch.sum(record.y**2))
@@ -187,16 +209,17 @@ def score_model(
     return ModelScore(physics.display_name, equation, physics.physical_parameters(), fit.mismatch,
                       (sse / norm) ** 0.5, value, physics, dict(fit.uncertainty.std), fit.uncertainty.warning,
                       fit.initial_states, [physics.initial_state(1)[0] if x0 is None else x0 for x0 in starts],
-                      outputs)
+                      outputs, fit.solver, dict(fit.uncertainty.interval))
 
 
 class _Engines:
     """The probe engine for each candidate, each built once, with the base's own output it computes (the
     reference of the zero-strength check): the tangent-linear model around a linear base for an effect
-    without states of its own, else RK4 secants."""
+    without states of its own, else secants by the fixed-step solver the base was fitted with."""
 
-    def __init__(self, base, train: list[Experiment], initial_states: list[torch.Tensor], scale: float):
-        self.base, self.train, self.initial_states, self.scale = base, train, initial_states, scale
+    def __init__(self, base, train: list[Experiment], fit: PhysicsEstimate, scale: float):
+        self.base, self.train, self.initial_states, self.scale = base, train, fit.initial_states, scale
+        self.solver = engine_solver(fit.solver)
         self.built: dict[str, tuple[TangentLinear | Secant, torch.Tensor] | None] = {}
 
     def of(self, effect: AbstractEffect) -> tuple[TangentLinear | Secant, torch.Tensor]:
@@ -206,7 +229,8 @@ class _Engines:
         if self.built.get(kind) is None:
             kind = "secant"
             if kind not in self.built:
-                self.built[kind] = self._with_reference(Secant(self.base, self.train, self.initial_states))
+                self.built[kind] = self._with_reference(Secant(self.base, self.train, self.initial_states,
+                                                                              self.solver))
         return self.built[kind]
 
     def _with_reference(self, engine):
@@ -328,7 +352,8 @@ RESCUE_FRACTIONS = (0.5, 0.25)
 
 def refit_effect(extended, name: str, start: float, train: list[Experiment], max_nfev: int, initial_state: str,
                  baseline: PhysicsEstimate | None = None, move: torch.Tensor | None = None, ftol: float = 1e-10,
-                 budget: Budget | None = None, bounds: dict[str, tuple[float, float]] | None = None) -> PhysicsEstimate:
+                 budget: Budget | None = None, bounds: dict[str, tuple[float, float]] | None = None,
+                 solver: Solver | None = None) -> PhysicsEstimate:
     """Fit ``extended`` from the first-order start (:func:`_first_order`): the strength ``name`` at ``start`` and,
     given the ``baseline`` fit, its unknowns (raw parameters, then estimated initial states) moved by ``move``.
 
@@ -340,11 +365,13 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     quarter (:data:`RESCUE_FRACTIONS`), is tried as the start in the same way, and the better fit is kept.
     ``ftol``, ``budget`` (shared by every fit tried here; :class:`~torchpaml._budget.OverBudget` ends the
     refit) and ``bounds`` (the effect's, :meth:`~torchpaml._physics.AbstractEffect.bounds`) go to
-    :func:`~torchpaml._fit.fit_physics`.
+    :func:`~torchpaml._fit.fit_physics`, with ``Auto(start=solver)``: the step check starts where the fit of the
+    physics under the effect ended (``solver``, default ``baseline.solver``).
     """
     warm = [WarmStart() for _ in train]  # the check's simulations start the fit's first Newton solves
+    solver = continued(solver if solver is not None or baseline is None else baseline.solver)
     fit = functools.partial(fit_physics, extended, train, max_nfev=max_nfev, initial_state=initial_state, ftol=ftol,
-                            budget=budget, bounds=bounds)
+                            budget=budget, bounds=bounds, solver=solver)
     states = None if baseline is None or initial_state != "estimate" else baseline.initial_states
     if baseline is None or move is None:
         return _halving_strength(extended, name, start, fit, states)
@@ -360,7 +387,7 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
             for tensor, value, delta in zip(raw, origin, move, strict=False):  # the move's tail: initial states'
                 tensor.copy_(value + fraction * delta)
         better = (assigned(extended, name, fraction * start)
-                  and _training_mismatch(extended, train, shifted, warm) < baseline.mismatch)
+                  and _training_mismatch(extended, train, shifted, warm, solver) < baseline.mismatch)
         return better, shifted
 
     better, shifted = moved_start(1.0)
@@ -372,7 +399,7 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     estimate = _halving_strength(extended, name, start, fit, states)
     if estimate.mismatch <= baseline.mismatch:
         return estimate
-    fitted_state, fitted_solver = copy.deepcopy(extended.state_dict()), extended.solver
+    fitted_state = copy.deepcopy(extended.state_dict())
     for fraction in RESCUE_FRACTIONS:
         better, shifted = moved_start(fraction)
         if better:
@@ -384,7 +411,6 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
                 return rescued
             break
     extended.load_state_dict(fitted_state)
-    extended.solver = fitted_solver
     return estimate
 
 
@@ -404,12 +430,13 @@ def _halving_strength(extended, name: str, start: float, fit, states: list[torch
     raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0")
 
 
-def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None, warm: list[WarmStart]) -> float:
+def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None, warm: list[WarmStart],
+                       solver: Solver) -> float:
     r"""The :func:`~torchpaml._metrics.mismatch` over the training records from ``states`` (or rest), simulated by the
-    solver that a fit of ``physics`` starts from (:func:`~torchpaml._simulate.solvers.engine_solver`; the fit then
+    solver that a fit with ``solver`` starts from (:func:`~torchpaml._simulate.solvers.engine_solver`; the fit then
     checks its own step); inf if the simulation blows up. Each record's solution is left in its
     :class:`~torchpaml.WarmStart` of ``warm``."""
-    solver = engine_solver(physics)
+    solver = engine_solver(solver)
     try:
         outputs = [simulate_record(physics, r, x0, solver=solver, warm=w).flatten()
                    for r, x0, w in zip(train, states or [None] * len(train), warm, strict=True)]
@@ -431,7 +458,7 @@ def _free_shape(entry: EffectEvidence, train: list[Experiment], validation: list
     states = score.train_states if initial_state == "estimate" else None
     try:
         estimate = fit_physics(freed, train, max_nfev=max_nfev, initial_state=initial_state, start_states=states,
-                               ftol=ftol, budget=budget, bounds=bounds)
+                               ftol=ftol, budget=budget, bounds=bounds, solver=continued(score.solver))
     except OverBudget as over:
         entry.refit_reason += f"; its shape ({', '.join(shape)}) not freed: over budget ({over.seconds:.1f} s)"
         return
@@ -502,7 +529,7 @@ class _Refits:
             return
         entry.refit = score_model(extended, refit, self.validation, self.rule, self.initial_state)
         entry.improvement = self.baseline.criterion - entry.refit.criterion
-        entry.unphysical = unphysical_values(entry.refit.model._rows())
+        entry.unphysical = unphysical_values(entry.refit.rows())
 
 
 def rank_missing_effects(
@@ -519,6 +546,7 @@ def rank_missing_effects(
     max_nfev: int = 40,
     refit_budget: float = REFIT_BUDGET,
     deadline: float | None = None,
+    solver: Solver | None = None,
 ) -> Ranking:
     """Rank ``candidates`` as the effect missing from ``physics`` (module docstring).
 
@@ -542,6 +570,8 @@ def rank_missing_effects(
             ``max_nfev`` evaluations at the refit's own cost per evaluation, whichever is longer
             (:mod:`torchpaml._budget`); one over it is reported undecided (``EffectEvidence.undecided``).
         deadline: a ``time.perf_counter()`` time by which every refit must end (the diagnosis' ``budget``).
+        solver: the solver ``physics`` was last fitted with (``PhysicsEstimate.solver``), where the step checks of
+            its fits start (:func:`~torchpaml._simulate.solvers.continued`); default ``Auto()``.
     """
     train, validation = as_records(train), as_records(validation)
     names = [c.name for c in candidates]
@@ -561,7 +591,8 @@ def rank_missing_effects(
     base = copy.deepcopy(physics)
     log.info("fitting %s on %d samples", base.display_name, sum(len(r.t) for r in train))
     began = time.perf_counter()
-    fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states)
+    fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states,
+                      solver=continued(solver))
     seconds = time.perf_counter() - began
     rule = rule or SelectionRule()
     baseline = score_model(base, fit, validation, rule, initial_state)
@@ -569,7 +600,7 @@ def rank_missing_effects(
         return Ranking(baseline, [], rule, skipped, initial_state)
     scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
     log.info("scoring %d candidates to first order", len(candidates))
-    engines = _Engines(base, train, fit.initial_states, scale)
+    engines = _Engines(base, train, fit, scale)
     entries, extended_models = [], {}
     for candidate in candidates:
         strength = f"{candidate.name}.{candidate.strength}"
@@ -609,6 +640,6 @@ def rank_missing_effects(
         _free_shape(best, train, validation, rule, max_nfev, initial_state, refits.ftol, refits.budget(best.effect),
                     extended_models[best.effect][3])
         best.improvement = baseline.criterion - best.refit.criterion
-        best.unphysical = unphysical_values(best.refit.model._rows())
+        best.unphysical = unphysical_values(best.refit.rows())
     rest = [e for e in by_score if e.refit is None]
     return Ranking(baseline, refitted + rest, rule, skipped, initial_state)

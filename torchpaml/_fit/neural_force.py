@@ -25,20 +25,22 @@ from torchpaml._data import Experiment
 from torchpaml._fit.output_error import minimize_output_error
 from torchpaml._physics.terms import variables_of
 from torchpaml._residual.mlp import MLPRate, RateAugmented
-from torchpaml._simulate.records import record_output, record_states
+from torchpaml._data.simulation import record_output, record_states
 from torchpaml._simulate.warm import WarmStart
-from torchpaml._simulate.solvers import engine_solver
+from torchpaml._simulate.solvers import FixedStep, Solver, engine_solver
 
 __all__ = ["NeuralForceFit", "fit_neural_force"]
 
 
 @dataclass
 class NeuralForceFit:
-    """Result of :func:`fit_neural_force`: the universal differential equation and its training mismatch."""
+    """Result of :func:`fit_neural_force`: the universal differential equation, its training mismatch, and the
+    fixed-step solver it was fitted (and is simulated) with."""
 
     model: RateAugmented
     mismatch: float
     iterations: int
+    solver: FixedStep
 
 
 def fit_neural_force(
@@ -50,6 +52,7 @@ def fit_neural_force(
     depth: int = 2,
     max_iter: int = 60,
     seed: int = 0,
+    solver: Solver | None = None,
 ) -> NeuralForceFit:
     """Fit a neural rate on top of ``physics`` (not modified: a frozen copy is used) to ``records``.
 
@@ -61,13 +64,16 @@ def fit_neural_force(
         depth: number of hidden tanh layers of the network.
         max_iter: L-BFGS iterations.
         seed: seed of the network's initial weights.
+        solver: the solver ``physics`` was fitted with (its fixed-step one integrates the network too,
+            :func:`~torchpaml._simulate.solvers.engine_solver`).
     """
+    solver = engine_solver(solver)
     frozen = copy.deepcopy(physics)
     frozen.set_learnable(*frozen.learnable_names(), learn=False)
     _, equations = variables_of(frozen)
     starts = [frozen.initial_state(1) if x0 is None else x0.reshape(1, -1)
               for x0 in (initial_states or [None] * len(records))]
-    states = torch.cat([record_states(frozen, r, x0) for r, x0 in zip(records, starts, strict=True)])
+    states = torch.cat([record_states(frozen, r, x0, solver) for r, x0 in zip(records, starts, strict=True)])
     inputs = torch.cat([r.u[:, 0] for r in records])
     scales = [float(s.std()) or 1.0 for s in (*states.T, inputs)]
     with torch.random.fork_rng():
@@ -77,9 +83,9 @@ def fit_neural_force(
     warm = [WarmStart() for _ in records]
 
     def predict() -> torch.Tensor:
-        return torch.cat([record_output(model, r, x0, solver=engine_solver(model), warm=w).flatten()
+        return torch.cat([record_output(model, r, x0, solver=solver, warm=w).flatten()
                           for r, x0, w in zip(records, starts, warm, strict=True)])
 
     target = torch.cat([r.y.flatten() for r in records])
     loss, iterations = minimize_output_error(predict, target, list(rate.parameters()), max_iter=max_iter)
-    return NeuralForceFit(model, loss**0.5, iterations)
+    return NeuralForceFit(model, loss**0.5, iterations, solver)

@@ -13,7 +13,7 @@ an interval), and the trust region keeps every iterate strictly inside. An optim
 ends within about 1e-9 of it (the paper's $\zeta$ capped at 5 for $\alpha = 10$).
 
 The estimate carries its :class:`~torchpaml._fit.uncertainty.Uncertainty` (standard errors, 95 %
-intervals, identifiability), which is also recorded on ``physics`` for ``describe()``; an
+intervals, identifiability; ``physics.describe(estimate.uncertainty)`` prints them); an
 :class:`~torchpaml._fit.uncertainty.IdentifiabilityWarning` names a combination the records do not determine.
 
 Trial steps whose simulation blows up are rejected by the trust region (their residual is inf);
@@ -22,7 +22,8 @@ a start that blows up raises :class:`~torchpaml._errors.SimulationError`.
 **The step check** (:mod:`torchpaml._fit.resolution`): at the optimum the output must not depend on the
 solver's step; where it does, the substeps grow and the fit goes on from the optimum. With the default
 solver, an optimum that RK4 cannot resolve (stiff physics) goes on with the implicit TR-BDF2. The fit
-returns the solver it resolved (``PhysicsEstimate.solver``) and sets it on the model (``physics.solver``).
+returns the solver it resolved (``PhysicsEstimate.solver``). It writes the fitted values into the parameters of
+``physics`` and nothing else: no attribute of the module changes.
 """
 
 from __future__ import annotations
@@ -44,9 +45,8 @@ from torchpaml._errors import ResolutionError, SimulationError
 from torchpaml._budget import Budget
 from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solver
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
-from torchpaml._parameters import record_uncertainty
 from torchpaml._physics.base import complete_state
-from torchpaml._simulate.records import record_jacobian
+from torchpaml._data.simulation import record_jacobian
 from torchpaml._simulate.lti import exact_step
 from torchpaml._simulate.sensitivity import raw_parameters
 from torchpaml._simulate.stiffness import STIFF_SUBSTEPS
@@ -71,7 +71,9 @@ class PhysicsEstimate:
             (and of the initial states, named ``x0[record].state``, where they were estimated).
         initial_states: each record's initial state (n_state,): rest, or the estimate.
         solver: the solver the fit ended with (the step check): RK4 or TRBDF2 at whole substeps, or ``Exact()``
-            where every record takes the exact path; also set on the model (``physics.solver``).
+            where every record takes the exact path. Simulate the fitted model with it to simulate it as the fit
+            did; fit a model built on this one with ``Auto(start=solver)``
+            (:func:`~torchpaml._simulate.solvers.continued`) to start its step check here.
     """
 
     parameters: dict[str, float]
@@ -136,8 +138,8 @@ def fit_physics(
         ftol: the trust region stops when a step lowers the cost $\tfrac12\|r\|^2$ by less than this share of it
             (scipy's ``ftol``); the default fits to the last digits, a ranking's refits stop earlier.
         solver: ``RK4(...)`` or ``TRBDF2(...)``: the method and the substeps to start from (``"auto"``: one), or
-            ``Auto()``/``None`` (the default): the model's own solver where it is one of those, else RK4 at one
-            substep, and TR-BDF2 where RK4 cannot resolve the optimum. The step check raises the substeps where
+            ``Auto()``/``None`` (the default): RK4 at one substep (or ``Auto``'s ``start``, a previous fit's
+            solver), and TR-BDF2 where RK4 cannot resolve the optimum. The step check raises the substeps where
             the fitted output depends on the step (:mod:`torchpaml._fit.resolution`).
         budget: a :class:`~torchpaml._budget.Budget`: progress lines while the fit runs, and
             :class:`~torchpaml._budget.OverBudget` raised past its limit (default: neither).
@@ -146,7 +148,7 @@ def fit_physics(
         raise ValueError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
     estimate_x0 = initial_state == "estimate"
     switch = solver is None or isinstance(solver, Auto)  # may go on with the implicit method
-    solver = _starting_solver(physics, solver)
+    solver = _starting_solver(solver)
     records = [records] if isinstance(records, Experiment) else list(records)
     if start_states is not None and (not estimate_x0 or len(start_states) != len(records)):
         raise ValueError(f"start_states needs initial_state='estimate' and one state per record ({len(records)}), got "
@@ -252,7 +254,6 @@ def fit_physics(
         result = solve(x)
         x = result.x
     linear = all(exact_step(physics, r.t) is not None for r in records)
-    physics.solver = Exact() if linear else solver
     residual, jacobian = evaluate(result.x)
     values = physics.physical_parameters()
     residual, jacobian = torch.from_numpy(residual.copy()), torch.from_numpy(jacobian.copy())
@@ -263,16 +264,15 @@ def fit_physics(
     estimates = torch.tensor([values[n] for n in names] + x0_values, dtype=torch.float64)
     uncertainty = parameter_uncertainty(names + state_names, estimates, residual, jacobian / slopes,
                                         at_limit=[n for n, slope in zip(names, slopes, strict=False) if slope == 0])
-    record_uncertainty(physics, {n: uncertainty.std[n] for n in names}, uncertainty.interval)
     warn_if_unidentifiable(uncertainty, physics.display_name)
     return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,
-                           jacobian, count["simulations"], uncertainty, initial_states, physics.solver)
+                           jacobian, count["simulations"], uncertainty, initial_states, Exact() if linear else solver)
 
 
-def _starting_solver(physics, solver: Solver | None) -> FixedStep:
+def _starting_solver(solver: Solver | None) -> FixedStep:
     """The fixed-step solver a fit starts from (``fit_physics``'s ``solver``)."""
     if solver is None or isinstance(solver, Auto):
-        return engine_solver(physics)
+        return engine_solver(solver)
     if not isinstance(solver, FixedStep):
         raise ValueError(f"fit_physics integrates with RK4(...) or TRBDF2(...) (or the default), got {solver!r}; "
                          "linear physics on a uniform grid takes the exact path by itself")

@@ -31,7 +31,7 @@ import torch
 from torchpaml._data import Experiment
 from torchpaml._errors import ResolutionError, SimulationError
 from torchpaml._simulate.lti import exact_step
-from torchpaml._simulate.records import record_states, simulate_record
+from torchpaml._data.simulation import record_states, simulate_record
 from torchpaml._simulate.solvers import RK4, TRBDF2, FixedStep
 from torchpaml._simulate.step_control import MAX_SUBSTEPS, next_substeps
 from torchpaml._simulate.stiffness import stable_substeps, stiffness
@@ -71,7 +71,7 @@ def _stiffness(physics, record: Experiment, x0: torch.Tensor | None, solver: Fix
         states, probe, stride = record_states(physics, coarse, x0, TRBDF2(substeps=1)), coarse, PROBE_STRIDE
     except SimulationError:
         states, probe, stride = record_states(physics, record, x0, solver), record, 1
-    return stiffness(physics, probe.t - probe.t[0], probe.u[None], states[None]) / stride
+    return stiffness(physics, probe.elapsed, probe.u[None], states[None]) / stride
 
 
 def stable_solver(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None],

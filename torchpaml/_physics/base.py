@@ -38,7 +38,7 @@ import torch
 from torch import nn
 from torch.nn.utils import parametrize
 
-from torchpaml._parameters import Interval, describe_parameters, format_table
+from torchpaml._parameters import Interval, describe_parameters, format_table, with_uncertainty
 
 __all__ = ["AbstractPhysics", "SecondOrderPhysics", "complete_state", "state_vector"]
 
@@ -70,16 +70,13 @@ def state_vector(columns: list[torch.Tensor]) -> torch.Tensor:
 class AbstractPhysics(nn.Module):
     """Abstract ODE physics $\\dot x = f(t, x, u)$, $y = h(x, u)$. Subclasses define the two maps.
 
-    ``solver``: the :mod:`solver <torchpaml._simulate.solvers>` with which calling the model, ``physics(t, u)``,
-    simulates it (training loops, the diagnosis of a fitted model): ``None`` (the default, ``Auto()``) until
-    :func:`~torchpaml._fit.fit_physics` sets the one its step check resolved (``PhysicsEstimate.solver``: RK4
-    or TR-BDF2 at the substeps where the fitted output no longer depends on the step,
-    :mod:`torchpaml._fit.resolution`; ``Exact()`` for linear physics). A solver is a frozen value.
+    A physics holds its parameters and its equations, not an integrator: calling it, ``physics(t, u)``, simulates it
+    with the default solver (``Auto()``) unless given one, and a fit leaves that meaning alone (its result carries
+    the solver it resolved, ``PhysicsEstimate.solver``; pass it as ``solver=`` to simulate as the fit did).
     """
 
     state_names: tuple[str, ...] = ()
     input_dim: int = 1
-    solver = None
     output_dim: int = 1
 
     @property
@@ -108,13 +105,12 @@ class AbstractPhysics(nn.Module):
         """Rest, shape (batch, n_state)."""
         return torch.zeros(batch, self.state_dim, dtype=torch.float64)
 
-    def forward(self, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None, *, solver=None,
-                **options) -> torch.Tensor:
-        """Simulate with the model's own ``solver`` unless given one: t (time,), u (batch, time, n_input) -> y
-        (batch, time, n_output). See :func:`simulate`."""
-        from torchpaml._simulate.simulator import simulate
+    def forward(self, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None, **options) -> torch.Tensor:
+        """``simulate(self, t, u, x0, **options)``: t (time,), u (batch, time, n_input) -> y (batch, time, n_output),
+        by ``Auto()`` unless ``solver=`` is given (:func:`~torchpaml.simulate`)."""
+        from torchpaml._simulate.simulator import simulate  # the simulator builds on the physics: imported when run
 
-        return simulate(self, t, u, x0, solver=self.solver if solver is None else solver, **options)
+        return simulate(self, t, u, x0, **options)
 
     def __add__(self, effect):
         """``physics + effect`` -> :class:`~torchpaml._physics.ComposedModel`; ``TypeError`` where the effect does not apply."""
@@ -151,7 +147,6 @@ class AbstractPhysics(nn.Module):
             if leaf not in getattr(owner, "_physical", {}):
                 raise ValueError(f"{self.display_name} has no physical parameter {name!r}")
             owner._physical[leaf].constraint.check(name, float(value))
-            getattr(owner, "_uncertainty", {}).pop(leaf, None)  # a fit's uncertainty no longer applies
             with torch.no_grad():
                 setattr(owner, leaf, torch.tensor(float(value), dtype=torch.float64))
         return self
@@ -182,9 +177,15 @@ class AbstractPhysics(nn.Module):
         path, _, leaf = name.rpartition(".")
         return (self.get_submodule(path) if path else self), leaf
 
-    def describe(self) -> str:
-        """A readable table of the physical parameters (value, unit, constraint, fixed/learned)."""
-        return f"{self.display_name}\n{format_table(self._rows())}"
+    def describe(self, uncertainty=None) -> str:
+        """A readable table of the physical parameters (value, unit, constraint, fixed/learned), with the standard
+        errors and 95 % intervals of ``uncertainty`` (a fit's, ``PhysicsEstimate.uncertainty``) where given."""
+        return f"{self.display_name}\n{self._table(uncertainty)}"
+
+    def _table(self, uncertainty) -> str:
+        rows = self._rows()
+        return format_table(rows if uncertainty is None else with_uncertainty(rows, uncertainty.std,
+                                                                             uncertainty.interval))
 
     @property
     def display_name(self) -> str:

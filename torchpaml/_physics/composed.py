@@ -20,10 +20,9 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from torchpaml._parameters import describe_parameters, format_table
+from torchpaml._parameters import describe_parameters
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
 from torchpaml._physics.effects import AbstractEffect
-from torchpaml._simulate.solvers import inherited_solver
 
 __all__ = ["ComposedModel", "compose"]
 
@@ -33,11 +32,8 @@ def compose(physics, effect: AbstractEffect) -> ComposedModel:
     if not isinstance(effect, AbstractEffect):
         raise TypeError(f"can only add an AbstractEffect to physics, got {type(effect).__name__}")
     if isinstance(physics, ComposedModel):
-        model = ComposedModel(physics.base, [*physics.effects.values(), effect])
-    else:
-        model = ComposedModel(physics, [effect])
-    model.solver = inherited_solver(physics)  # the solver the physics was fitted with
-    return model
+        return ComposedModel(physics.base, [*physics.effects.values(), effect])
+    return ComposedModel(physics, [effect])
 
 
 class ComposedModel(AbstractPhysics):
@@ -65,7 +61,6 @@ class ComposedModel(AbstractPhysics):
         self.state_names = (*base.state_names,
                             *(f"{e.name}.{s.name}" for e in effects for s in e.own_states))
         self.input_dim, self.output_dim = base.input_dim, base.output_dim
-        self.solver = inherited_solver(base)
 
     def _own(self, x: torch.Tensor) -> tuple[torch.Tensor, dict[str, tuple[torch.Tensor, ...]]]:
         """The base's states (..., n_base) and, per effect, the extra hook argument: ``(z,)`` (..., k) for an
@@ -137,11 +132,12 @@ class ComposedModel(AbstractPhysics):
             rows += describe_parameters(effect, prefix=f"{name}.")
         return rows
 
-    def describe(self) -> str:
-        """The equation, the parameter table and the effects' own states (name, unit, meaning, initial value)."""
+    def describe(self, uncertainty=None) -> str:
+        """The equation, the parameter table (with ``uncertainty``, as :meth:`AbstractPhysics.describe`) and the
+        effects' own states (name, unit, meaning, initial value)."""
         states = [f"{name}.{s.name} ({s.unit}): {s.meaning}, starts at {s.initial:g}"
                   for name, effect in self.effects.items() for s in effect.own_states]
-        text = f"{self.display_name}: {self.equation()}\n{format_table(self._rows())}"
+        text = f"{self.display_name}: {self.equation()}\n{self._table(uncertainty)}"
         return text + "".join(f"\nstate {line}" for line in states)
 
     def _owner(self, name: str) -> tuple[nn.Module, str]:

@@ -83,7 +83,7 @@ def _tensorboard(diagnosis: Diagnosis, content: dict, figures: dict, folder: Pat
                 writer.add_scalar(f"discovery/nrmse_validation/{key}", value, 0)
         writer.add_text("discovery/expression", diagnosis.discovery.text, 0)
     writer.add_text("diagnose/verdict", diagnosis.verdict, 0)
-    writer.add_text("diagnose/final_model", f"    {diagnosis.ladder.final.model.describe()}".replace("\n", "\n    "), 0)
+    writer.add_text("diagnose/final_model", f"    {diagnosis.ladder.final.describe()}".replace("\n", "\n    "), 0)
     writer.close()
 
 
@@ -132,7 +132,7 @@ def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
         ranking += _table(["model", "effect", "seconds"],
                           [[u["model"], u["effect"], f"{u['seconds']:.1f}"] for u in content["undecided"]])
     images = "".join(f'<h3>{name}</h3><img src="figures/{name}.png" alt="{name}">' for name in figures)
-    final = html.escape(diagnosis.ladder.final.model.describe())
+    final = html.escape(diagnosis.ladder.final.describe())
     warning = diagnosis.ladder.final.warning
     if warning is not None:
         final += f"</pre><p><b>Identifiability.</b> {html.escape(warning)}</p><pre>"

@@ -41,15 +41,14 @@ def ladder_to_dicts(ladder: Ladder) -> list[dict]:
         {"model": s.name, "equation": s.equation, "added": None if i == 0 else ladder.added[i - 1],
          "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
          "parameters": s.parameters, "uncertainty": _errors(s.uncertainty), "identifiability": s.warning,
-         **_solver(s.model.solver)}
+         **_solver(s.solver)}
         for i, s in enumerate(ladder.steps)
     ]
 
 
 def _solver(solver) -> dict:
     """``{solver, substeps}`` of a rung's model: ``{"Auto", None}`` for a model that no fit resolved."""
-    return {"solver": "Auto", "substeps": None} if solver is None else \
-        {"solver": type(solver).__name__, "substeps": solver.substeps}
+    return {"solver": type(solver).__name__, "substeps": getattr(solver, "substeps", None)}
 
 
 def hybrid_to_dict(hybrid: HybridScore) -> dict:

@@ -18,7 +18,6 @@ from torch import nn
 
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
 from torchpaml._residual.base import AbstractResidual
-from torchpaml._simulate.solvers import inherited_solver
 
 __all__ = ["MLPResidual", "MLPForce", "ForceAugmented", "MLPRate", "RateAugmented", "mlp"]
 
@@ -92,7 +91,6 @@ class ForceAugmented(SecondOrderPhysics):
         if not isinstance(base, SecondOrderPhysics):
             raise TypeError(f"ForceAugmented needs second-order (mechanical) physics, got {type(physics).__name__}")
         self.physics, self.force = physics, force
-        self.solver = inherited_solver(physics)
 
     def acceleration(self, t, x, v, u):
         return self.physics.acceleration(t, x, v, u) + self.force(x, v, u)
@@ -128,7 +126,6 @@ class RateAugmented(AbstractPhysics):
         super().__init__()
         self.physics, self.rate, self.equations = physics, rate, list(equations)
         self.state_names, self.input_dim, self.output_dim = physics.state_names, physics.input_dim, physics.output_dim
-        self.solver = inherited_solver(physics)
 
     def derivative(self, t, x, u):
         dx = self.physics.derivative(t, x, u)

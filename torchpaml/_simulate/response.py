@@ -22,10 +22,9 @@ import torch
 
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._simulate.shooting import simulate_shooting
-from torchpaml._simulate.solvers import engine_solver
+from torchpaml._simulate.solvers import Solver, engine_solver
 from torchpaml._simulate.simulator import simulate
 from torchpaml._simulate.warm import WarmStart
-from torchpaml._simulate.solvers import inherited_solver
 
 __all__ = ["forced_response"]
 
@@ -43,7 +42,6 @@ class _Injected(AbstractPhysics):
         self.physics = physics
         self.state_names, self.output_dim = physics.state_names, physics.output_dim
         self.input_dim = physics.input_dim + physics.state_dim
-        self.solver = inherited_solver(physics)
 
     def derivative(self, t, x, u):
         m = self.physics.input_dim
@@ -65,8 +63,8 @@ class _Injected(AbstractPhysics):
                 torch.cat([D, torch.zeros(D.shape[0], n, dtype=D.dtype)], dim=1))
 
 
-def forced_response(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, rates: torch.Tensor,
-                    hold: str = "foh") -> torch.Tensor:
+def forced_response(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
+                    rates: torch.Tensor, hold: str = "foh", solver: Solver | None = None) -> torch.Tensor:
     r"""$\mathcal L[w]$ (module docstring) for each of ``rates``, without gradients.
 
     Args:
@@ -74,6 +72,7 @@ def forced_response(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
         t: (time,) from 0; u: (1, time, n_input); x0: (1, n_state): one record.
         rates: $w$, (k, time, n_state): k extra rates on the state equations.
         hold: how the input (and the rates) move between samples.
+        solver: the solver ``physics`` was fitted with (:func:`~torchpaml._simulate.solvers.engine_solver`).
 
     Returns:
         (k, time, n_output).
@@ -91,7 +90,8 @@ def forced_response(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
                 inputs = torch.cat([drive.expand(len(rows), -1, -1), rows], dim=-1)
                 parts.append(simulate(injected, t, inputs, rest.expand(len(rows), -1), hold=hold))
             return torch.cat(parts)
-        base = simulate_shooting(physics, t, u, x0, engine_solver(physics), hold=hold)
+        engine = engine_solver(solver)
+        base = simulate_shooting(physics, t, u, x0, engine, hold=hold)
         speed = physics.derivative(t, base[0], u[0]).square().mean(dim=0).sqrt()  # each rate's RMS (n,)
         for rows in rates.split(chunk):
             size = rows.square().mean(dim=1).sqrt()  # (rows, n)
@@ -99,7 +99,7 @@ def forced_response(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
             signed = torch.cat([eps * rows, -eps * rows])
             inputs = torch.cat([u.expand(len(signed), -1, -1), signed], dim=-1)
             starts = x0.expand(len(signed), -1)
-            y = injected(t, inputs, starts, solver=engine_solver(physics), warm=WarmStart(base.expand(len(signed), -1, -1)),
+            y = injected(t, inputs, starts, solver=engine, warm=WarmStart(base.expand(len(signed), -1, -1)),
                          hold=hold)
             parts.append((y[: len(rows)] - y[len(rows):]) / (2 * eps))
     return torch.cat(parts)

@@ -40,8 +40,8 @@ from torchpaml._grid import check_hold
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._simulate.lti import discrete_response, discretize, exact_step, foh_exponent
 from torchpaml._simulate.shooting import ShootingSolution, solve_shooting
-from torchpaml._simulate.solvers import FixedStep, engine_solver
-from torchpaml._simulate.simulator import checked_output
+from torchpaml._simulate.solvers import Solver, engine_solver
+from torchpaml._simulate.blowup import checked_output
 from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["output_jacobian", "raw_parameters"]
@@ -156,7 +156,7 @@ def _directional(function, value: torch.Tensor, direction: torch.Tensor) -> torc
 
 def output_jacobian(
     physics: AbstractPhysics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
-    warm: WarmStart | None = None, initial_state: bool = False, hold: str = "foh", solver: FixedStep | None = None
+    warm: WarmStart | None = None, initial_state: bool = False, hold: str = "foh", solver: Solver | None = None
 ) -> tuple[torch.Tensor, torch.Tensor]:
     """Output and its Jacobian in the raw parameters ``names`` (module docstring).
 
@@ -168,9 +168,8 @@ def output_jacobian(
             iterations): the RK4 path stores its converged states in it and starts the next Newton solve from them.
         initial_state: also differentiate in ``x0``.
         hold: ``"foh"`` or ``"zoh"``, how the input moves between samples (:func:`~torchpaml._simulate.simulate`).
-        solver: RK4 or TRBDF2 at whole substeps (default the model's own,
-            :func:`~torchpaml._simulate.solvers.engine_solver`); linear physics on a uniform grid takes the
-            exact path.
+        solver: the solver the model was fitted with (:func:`~torchpaml._simulate.solvers.engine_solver`: RK4 or
+            TRBDF2 at whole substeps, else RK4 at one); linear physics on a uniform grid takes the exact path.
 
     Returns:
         y (batch, time, n_output) and J (batch, time, n_output, p), or (..., p + n_state) with
@@ -185,7 +184,7 @@ def output_jacobian(
     h = exact_step(physics, t)
     if h is not None:  # the same routing as simulate's Auto()
         return _exact_jacobian(physics, raw, h, t, u, x0.detach(), initial_state, check_hold(hold))
-    solution = solve_shooting(physics, t, u, x0, engine_solver(physics) if solver is None else solver, warm=warm,
+    solution = solve_shooting(physics, t, u, x0, engine_solver(solver), warm=warm,
                               hold=hold)
     module = _Tail(physics, solution, x0, u)
     raw = {f"physics.{key}": value for key, value in raw.items()}

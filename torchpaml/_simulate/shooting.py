@@ -56,8 +56,6 @@ from torchpaml._budget import checkpoint
 from torchpaml._grid import check_hold
 from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.scan import linear_recurrence
-from torchpaml._simulate.solvers import FixedStep
-from torchpaml._simulate.steps import COEFFICIENTS, sweep
 from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["ShootingSolution", "base_guess", "simulate_shooting", "solve_shooting"]
@@ -108,7 +106,7 @@ class _Layout:
         rows = lambda v: v.reshape(batch * self.S, self.L, m).transpose(0, 1)  # noqa: E731  (L, batch * S, m)
         start, change = rows(u0), rows(u1 - u0 if hold == "foh" else torch.zeros_like(u0))
         self._inputs = start[:, None] + fractions[:, None, None] * change[:, None]
-        coefficients = torch.tensor(COEFFICIENTS[type(solver)], dtype=t.dtype)
+        coefficients = torch.tensor(solver.coefficients, dtype=t.dtype)
         self._steps = (h / substeps)[:, None, :, None] * coefficients[:, None, None]
         self._stages: dict[int, list] = {}
 
@@ -134,7 +132,7 @@ class _Layout:
     def sweep(self, physics, starts: torch.Tensor, copies: int = 1) -> torch.Tensor:
         """starts (copies, batch, S, n) -> states (copies, batch, S, L + 1, n), a view of state-major memory."""
         n = starts.shape[-1]
-        states = sweep(physics, self.solver, starts.reshape(-1, n), self.stages(copies))
+        states = self.solver.sweep(physics, starts.reshape(-1, n), self.stages(copies))
         return states.reshape(n, self.L + 1, copies, self.batch, self.S).permute(2, 3, 4, 1, 0)
 
     def assemble(self, states: torch.Tensor) -> torch.Tensor:
@@ -366,7 +364,7 @@ def solve_shooting(
     ``hold``: ``"foh"`` or ``"zoh"`` (module docstring).
     """
     check_hold(hold)
-    if not isinstance(solver, FixedStep) or solver.substeps == "auto":
+    if not hasattr(solver, "sweep") or solver.substeps == "auto":
         raise TypeError(f"the shooting engine needs RK4 or TRBDF2 with a whole number of substeps, got {solver!r}")
     tol = tol if tol is not None else GRADIENT_TOL if sensitivities else NEWTON_TOL
     if warm is not None and not isinstance(warm, WarmStart):

@@ -11,22 +11,38 @@ r"""The simulator's solvers: objects that say how :func:`~torchpaml.simulate` in
 ========================  ==========================================================================
 
 ``RK4`` and ``TRBDF2`` step on the sample grid, ``substeps`` steps per sample interval, in the
-multiple-shooting engine (:mod:`~torchpaml._simulate.shooting`). ``substeps="auto"`` (their default)
-doubles the substeps until halving the step moves the output by at most ``rtol`` of its size
-(:mod:`~torchpaml._simulate.step_control`); a number fixes them, unchecked. A fit returns the fixed
-solver its step check resolved (``PhysicsEstimate.solver``), and the model simulates with it
-(``physics.solver``).
+multiple-shooting engine (:mod:`~torchpaml._simulate.shooting`), each by its own :meth:`~FixedStep.sweep`.
+``substeps="auto"`` (their default) doubles the substeps until halving the step moves the output by at most
+``rtol`` of its size (:mod:`~torchpaml._simulate.step_control`); a number fixes them, unchecked. A fit returns the
+fixed solver its step check resolved (``PhysicsEstimate.solver``); pass it on to simulate the fitted model as it
+was fitted (``simulate(physics, t, u, solver=fit.solver)``), or as ``Auto(start=fit.solver)`` to a fit of a model
+built on it, whose step check then starts there.
 
-Solvers are frozen values: compare them, print them, keep them in a config.
+Each solver integrates (:meth:`Solver.integrate`); :func:`~torchpaml.simulate` checks the arguments and the output
+and only drives it. Solvers are frozen values: compare them, print them, keep them in a config.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import ClassVar, Literal
 
-__all__ = ["Auto", "Dopri5", "Exact", "FixedStep", "RK4", "SEGMENT_STEPS", "Solver", "TRBDF2", "engine_solver", "inherited_solver"]
+import torch
+
+from torchpaml._errors import ResolutionError, SimulationError
+from torchpaml._grid import uniform_step
+from torchpaml._simulate.blowup import checked_output
+from torchpaml._simulate.fixed_step import simulate_fixed_step
+from torchpaml._simulate.lti import exact_step, simulate_lti
+from torchpaml._simulate.ode import simulate_ode
+from torchpaml._simulate.steps import GAMMA, RK4_COEFFICIENTS, TRBDF2_COEFFICIENTS, rk4_sweep, trbdf2_sweep
+from torchpaml._simulate.stiffness import RK4_STABILITY, STIFF_SUBSTEPS
+from torchpaml._simulate.warm import WarmStart
+
+__all__ = ["Auto", "Dopri5", "Exact", "FixedStep", "RK4", "SEGMENT_STEPS", "Solver", "TRBDF2", "continued",
+           "engine_solver"]
 
 #: Default segment length L (steps) of the shooting engine. A sweep costs L dispatch-bound steps plus arithmetic
 #: on every sample, which does not depend on L; 2 is the fastest of 1, 2, 4, 8 and 16 for simulations and
@@ -36,8 +52,15 @@ SEGMENT_STEPS = 2
 STEP_RTOL = 1e-3
 
 
-class Solver:
-    """Base of the solvers (module docstring)."""
+class Solver(ABC):
+    """Base of the solvers (module docstring): each integrates the physics by its own method."""
+
+    @abstractmethod
+    def integrate(self, physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, *, warm: WarmStart | None,
+                  hold: str, knots: torch.Tensor | None, blowup: float) -> torch.Tensor:
+        """The output (batch, time, n_output) of ``physics`` from ``x0`` (batch, n_state) driven by ``u`` (batch,
+        time, n_input) on the grid ``t`` (time,), checked against ``blowup`` (arguments of
+        :func:`~torchpaml.simulate`, which checks them first)."""
 
 
 def _check_rtol(rtol: float) -> None:
@@ -52,6 +75,12 @@ class Exact(Solver):
 
     #: One exact step per sample interval.
     substeps: ClassVar[int] = 1
+
+    def integrate(self, physics, t, u, x0, *, warm, hold, knots, blowup):
+        matrices = physics.state_space()
+        if matrices is None:
+            raise ValueError(f"solver=Exact() needs linear physics; {physics.display_name} is nonlinear. Use RK4()")
+        return checked_output(simulate_lti(*matrices, uniform_step(t), u, x0, hold), t, blowup)
 
 
 @dataclass(frozen=True)
@@ -72,6 +101,11 @@ class FixedStep(Solver):
     order: ClassVar[int]
     #: The fraction of a step at which the method evaluates its middle stage.
     middle: ClassVar[float]
+    #: The method's step coefficients, as multiples of the substep (:mod:`~torchpaml._simulate.steps`).
+    coefficients: ClassVar[tuple[float, ...]]
+    #: $|h\lambda|$ up to which the method is stable, ``None`` for an implicit, L-stable one
+    #: (:mod:`~torchpaml._simulate.stiffness`).
+    stability: ClassVar[float | None]
 
     def __post_init__(self):
         m = self.substeps
@@ -86,6 +120,14 @@ class FixedStep(Solver):
         """This solver with ``substeps`` fixed."""
         return dataclasses.replace(self, substeps=substeps)
 
+    @abstractmethod
+    def sweep(self, physics, x: torch.Tensor, stages) -> torch.Tensor:
+        """One step of the method per stage, for the rows of ``x`` (rows, n): the states at the step boundaries,
+        (n, L + 1, rows) (:mod:`~torchpaml._simulate.steps`)."""
+
+    def integrate(self, physics, t, u, x0, *, warm, hold, knots, blowup):
+        return simulate_fixed_step(physics, t, u, x0, self, warm, hold, blowup)
+
 
 @dataclass(frozen=True)
 class RK4(FixedStep):
@@ -94,10 +136,11 @@ class RK4(FixedStep):
 
     order: ClassVar[int] = 4
     middle: ClassVar[float] = 0.5
+    coefficients: ClassVar[tuple[float, ...]] = RK4_COEFFICIENTS
+    stability: ClassVar[float | None] = RK4_STABILITY
 
-
-#: TR-BDF2's split of a step: the trapezoid covers the first ``GAMMA`` of it, BDF2 the rest.
-GAMMA = 2 - 2**0.5
+    def sweep(self, physics, x, stages):
+        return rk4_sweep(physics, x, stages, self.substeps)
 
 
 @dataclass(frozen=True)
@@ -117,6 +160,11 @@ class TRBDF2(FixedStep):
 
     order: ClassVar[int] = 2
     middle: ClassVar[float] = GAMMA
+    coefficients: ClassVar[tuple[float, ...]] = TRBDF2_COEFFICIENTS
+    stability: ClassVar[float | None] = None
+
+    def sweep(self, physics, x, stages):
+        return trbdf2_sweep(physics, x, stages, self.substeps)
 
 
 @dataclass(frozen=True)
@@ -137,29 +185,64 @@ class Dopri5(Solver):
     def __post_init__(self):
         _check_rtol(self.rtol)
 
+    def integrate(self, physics, t, u, x0, *, warm, hold, knots, blowup):
+        if hold == "zoh":
+            raise ValueError("hold='zoh' is simulated by the exact path and by the fixed-step solvers, not by Dopri5, "
+                             "whose interpolant is first-order; use solver=RK4() or the default")
+        states = simulate_ode(physics, t, u, x0, method="dopri5", rtol=self.rtol, atol=self.atol,
+                              adjoint=self.adjoint, max_num_steps=self.max_num_steps, knots=knots)
+        return checked_output(physics.output(states, u), t, blowup)
+
 
 @dataclass(frozen=True)
 class Auto(Solver):
     """The default (module docstring): ``Exact`` where it applies, else ``RK4(rtol=rtol)``, else, where RK4 cannot
-    reach ``rtol`` within its substeps, ``TRBDF2(rtol=rtol)``."""
+    reach ``rtol`` within :data:`~torchpaml._simulate.stiffness.STIFF_SUBSTEPS` substeps, ``TRBDF2(rtol=rtol)``.
+
+    Attributes:
+        rtol: the output's relative tolerance (the step doubling's).
+        start: a fixed-step solver whose substeps the step doubling of the same method starts from (a previous
+            fit's ``PhysicsEstimate.solver``, :func:`continued`); it changes the work, not the result's tolerance.
+    """
 
     rtol: float = STEP_RTOL
+    start: FixedStep | None = None
 
     def __post_init__(self):
         _check_rtol(self.rtol)
 
+    def _start(self, method: FixedStep) -> int:
+        own = self.start
+        return own.substeps if type(own) is type(method) and own.substeps != "auto" else 1
 
-def engine_solver(physics) -> FixedStep:
-    """The fixed-step solver with which the shooting engine simulates ``physics`` where no solver is passed (the
-    probes, the states of a fitted model): the model's own (``physics.solver``) where it is RK4 or TR-BDF2 at whole
-    substeps, else RK4 at one substep per sample."""
-    own = physics.solver
-    return own if isinstance(own, FixedStep) and own.substeps != "auto" else RK4(substeps=1)
+    def integrate(self, physics, t, u, x0, *, warm, hold, knots, blowup):
+        if exact_step(physics, t) is not None:
+            return Exact().integrate(physics, t, u, x0, warm=warm, hold=hold, knots=knots, blowup=blowup)
+        explicit, implicit = RK4(rtol=self.rtol), TRBDF2(rtol=self.rtol)
+        try:
+            return simulate_fixed_step(physics, t, u, x0, explicit, warm, hold, blowup, most_stable=STIFF_SUBSTEPS,
+                                       start=self._start(explicit))
+        except (ResolutionError, SimulationError) as error:  # too stiff for RK4's step: the implicit method
+            try:
+                return simulate_fixed_step(physics, t, u, x0, implicit, WarmStart(), hold, blowup,
+                                           start=self._start(implicit))
+            except (ResolutionError, SimulationError):
+                raise error from None
 
 
-def inherited_solver(physics) -> FixedStep | None:
-    """The solver of a model built on ``physics`` (``physics + effect``, a learned force, an injected rate): the
-    fixed-step solver ``physics`` was fitted with, else ``None`` (``Auto()``; the exact path of a linear
-    ``physics`` does not apply to the nonlinear model)."""
-    own = physics.solver
-    return own if isinstance(own, FixedStep) else None
+def engine_solver(solver: Solver | None) -> FixedStep:
+    """The fixed-step solver with which the shooting engine simulates a model where ``solver`` says how it was
+    fitted (the probes, the states of a fitted model): ``solver`` where it is RK4 or TR-BDF2 at whole substeps, an
+    ``Auto``'s ``start``, else RK4 at one substep per sample."""
+    if isinstance(solver, Auto):
+        solver = solver.start
+    return solver if isinstance(solver, FixedStep) and solver.substeps != "auto" else RK4(substeps=1)
+
+
+def continued(solver: Solver | None) -> Auto:
+    """The solver of a fit of a model built on one fitted with ``solver`` (``physics + effect``, a learned force, a
+    freed shape): the default ``Auto()``, its step check started from ``solver`` where that is a fixed-step one (the
+    exact path of a linear physics does not apply to the nonlinear model)."""
+    if isinstance(solver, Auto):
+        return solver
+    return Auto(start=solver if isinstance(solver, FixedStep) else None)

@@ -1,12 +1,15 @@
 r"""The one-step methods of the shooting engine: RK4 (explicit) and TR-BDF2 (implicit), each as a sweep.
 
+:class:`~torchpaml.RK4` and :class:`~torchpaml.TRBDF2` each call their own sweep here (``solver.sweep``); this module
+knows no solver class.
+
 A sweep integrates rows of states through the steps of a segment (:class:`~torchpaml._simulate.shooting`'s
 layout). The states are kept state-major (each state's column contiguous, see
 :func:`~torchpaml._physics.state_vector`). Each step has its stage times and inputs at the fractions
 $j/m$ and $(j + c)/m$ of the sample interval ($m$ substeps, $c$ the method's ``middle``), laid out once
 per solve, and its step coefficients.
 
-**TR-BDF2's stages** solve $z = a + d\,h\,f(t_z, z)$ (:class:`~torchpaml._simulate.solvers.TRBDF2`) by
+**TR-BDF2's stages** solve $z = a + d\,h\,f(t_z, z)$ (:class:`~torchpaml.TRBDF2`) by
 Newton's method, the Jacobian $\partial f/\partial x$ by reverse mode (one backward pass per state), until
 the update is below :data:`NEWTON_TOL` of the state's scale. In a sweep that records gradients the converged $z^*$ is corrected once more,
 
@@ -23,16 +26,16 @@ from __future__ import annotations
 import torch
 
 from torchpaml._errors import SimulationError
-from torchpaml._simulate.solvers import GAMMA, RK4, TRBDF2, FixedStep
+__all__ = ["GAMMA", "RK4_COEFFICIENTS", "TRBDF2_COEFFICIENTS", "rate_and_jacobian", "rk4_sweep", "trbdf2_sweep"]
 
-__all__ = ["COEFFICIENTS", "rate_and_jacobian", "sweep"]
-
+#: TR-BDF2's split of a step: the trapezoid covers the first ``GAMMA`` of it, BDF2 the rest.
+GAMMA = 2 - 2**0.5
 #: TR-BDF2's implicit coefficient $d$ (both stages).
 D = 1 - 2**-0.5
 #: The BDF2 stage's weights of $x_\gamma$ and of $x$.
 BDF_NEW, BDF_OLD = 1 / (GAMMA * (2 - GAMMA)), (1 - GAMMA) ** 2 / (GAMMA * (2 - GAMMA))
 #: Each method's step coefficients, as multiples of the substep: RK4's half, whole and sixth; TR-BDF2's d.
-COEFFICIENTS = {RK4: (0.5, 1.0, 1 / 6), TRBDF2: (D,)}
+RK4_COEFFICIENTS, TRBDF2_COEFFICIENTS = (0.5, 1.0, 1 / 6), (D,)
 #: Newton's stopping update in a TR-BDF2 stage, relative to the state's scale.
 NEWTON_TOL = 1e-12
 #: Newton iterations after which a stage that has not converged raises.
@@ -41,7 +44,17 @@ MAX_ITERATIONS = 20
 HALVINGS = 10
 
 
-def _rk4(physics, x: torch.Tensor, stages, substeps: int) -> list[torch.Tensor]:
+def _state_major(x: torch.Tensor) -> torch.Tensor:
+    return x.t().contiguous().t()
+
+
+def rk4_sweep(physics, x: torch.Tensor, stages, substeps: int) -> torch.Tensor:
+    """Integrate the rows of ``x`` (rows, n) through the steps of ``stages`` by RK4 at ``substeps``.
+
+    Returns:
+        states at the step boundaries, (n, L + 1, rows), contiguous.
+    """
+    x = _state_major(x)
     states = [x.t()]
     f = physics.derivative
     for times, inputs, (half, step, sixth) in stages:
@@ -53,7 +66,7 @@ def _rk4(physics, x: torch.Tensor, stages, substeps: int) -> list[torch.Tensor]:
             k4 = f(t_c, torch.addcmul(x, step, k3), u_c)
             x = torch.addcmul(x, sixth, torch.add(k1 + k4, k2 + k3, alpha=2))
         states.append(x.t())
-    return states
+    return torch.stack(states, dim=1)
 
 
 def rate_and_jacobian(f, t: torch.Tensor, z: torch.Tensor, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -120,7 +133,10 @@ def _stage(f, t: torch.Tensor, u: torch.Tensor, a: torch.Tensor, dh: torch.Tenso
     return z - torch.linalg.solve(M, z - a - dh * f(t, z, u))
 
 
-def _trbdf2(physics, x: torch.Tensor, stages, substeps: int) -> list[torch.Tensor]:
+def trbdf2_sweep(physics, x: torch.Tensor, stages, substeps: int) -> torch.Tensor:
+    """Integrate the rows of ``x`` (rows, n) through the steps of ``stages`` by TR-BDF2 at ``substeps``; returns as
+    :func:`rk4_sweep`."""
+    x = _state_major(x)
     states = [x.t()]
     f = physics.derivative
     scale = x.detach().abs().amax(dim=0).clamp(min=1.0)
@@ -130,17 +146,4 @@ def _trbdf2(physics, x: torch.Tensor, stages, substeps: int) -> list[torch.Tenso
             middle = _stage(f, t_g, u_g, torch.addcmul(x, dh, f(t_a, x, u_a)), dh, x.detach(), scale)
             x = _stage(f, t_c, u_c, BDF_NEW * middle - BDF_OLD * x, dh, middle.detach(), scale)
         states.append(x.t())
-    return states
-
-
-_SWEEPS = {RK4: _rk4, TRBDF2: _trbdf2}
-
-
-def sweep(physics, solver: FixedStep, x: torch.Tensor, stages) -> torch.Tensor:
-    """Integrate the rows of ``x`` (rows, n) through the steps of ``stages`` by ``solver``'s method, at its substeps.
-
-    Returns:
-        states at the step boundaries, (n, L + 1, rows), contiguous.
-    """
-    x = x.t().contiguous().t()
-    return torch.stack(_SWEEPS[type(solver)](physics, x, stages, solver.substeps), dim=1)
+    return torch.stack(states, dim=1)

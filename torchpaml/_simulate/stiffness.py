@@ -18,14 +18,17 @@ L-stable TR-BDF2 (no such limit) takes over where the solver is the default.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import torch
 
 from torchpaml._errors import ResolutionError
-from torchpaml._simulate.solvers import RK4, FixedStep
 from torchpaml._simulate.step_control import MAX_SUBSTEPS
 
-__all__ = ["STABILITY", "STIFF_SUBSTEPS", "stable_substeps", "stiffness"]
+if TYPE_CHECKING:
+    from torchpaml._simulate.solvers import FixedStep
+
+__all__ = ["RK4_STABILITY", "STIFF_SUBSTEPS", "stable_substeps", "stiffness"]
 
 #: RK4 substeps beyond which the default solver calls the physics stiff and integrates it with TR-BDF2: where
 #: stability alone needs more RK4 steps than this, one or two TR-BDF2 steps (a few physics calls each) cost less.
@@ -36,8 +39,8 @@ POINTS = 4096
 QUANTILE = 0.99
 #: Relative step of the forward differences of $J$ (the estimate needs its size, not its digits).
 DIFFERENCE = 1e-7
-#: $|h\lambda|$ up to which each explicit method is stable (module docstring); implicit methods have no limit.
-STABILITY = {RK4: 2.5}
+#: $|h\lambda|$ up to which RK4 is stable (module docstring; ``RK4.stability``); implicit methods have no limit.
+RK4_STABILITY = 2.5
 
 
 def stiffness(physics, t: torch.Tensor, u: torch.Tensor, states: torch.Tensor) -> float:
@@ -68,7 +71,7 @@ def stable_substeps(solver: FixedStep, sigma: float, most: int = MAX_SUBSTEPS) -
     :class:`~torchpaml._errors.ResolutionError` where that is more than ``most``: the physics is stiff for the
     method (the default solver then takes TR-BDF2 beyond :data:`STIFF_SUBSTEPS`)."""
     m = solver.substeps
-    limit = STABILITY.get(type(solver))
+    limit = solver.stability
     if limit is None or sigma <= limit * m:
         return m
     needed = m * 2 ** math.ceil(math.log2(sigma / (limit * m)))

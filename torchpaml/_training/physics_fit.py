@@ -10,6 +10,7 @@ from torchpaml._fit import fit_physics
 from torchpaml._metrics import mismatch
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._training.system import HybridSystem, scored
+from torchpaml._simulate.simulator import simulate
 from torchpaml._simulate.solvers import Solver
 
 __all__ = ["PhysicsFit"]
@@ -68,8 +69,9 @@ class PhysicsFit(HybridSystem):
         if self.trainer.world_size > 1:
             u, y = (self.all_gather(v).flatten(0, 1) for v in (u, y))
         fit = fit_physics(self.physics, Experiment.records(batch["t"], u, y), max_nfev=self.max_iter)
+        self.physics_solver = fit.solver
         with torch.no_grad():
-            y_model = scored(batch, self.physics(batch["t"], u))
+            y_model = scored(batch, simulate(self.physics, batch["t"], u, solver=fit.solver))
         values = {"loss": fit.mismatch**2, "mismatch_pct": 100 * mismatch(scored(batch, y), y_model),
                   **self.physics.physical_parameters()}
         self.log_dict({f"{self.stage}/train/{k}": float(v) for k, v in values.items()}, batch_size=len(y))

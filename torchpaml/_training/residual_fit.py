@@ -110,6 +110,7 @@ class ResidualFit(HybridSystem):
                 )
             self.physics.set_learnable(*self.identified_names)
             fit = fit_physics(self.physics, Experiment.records(batch["t"], batch["u"], batch["y"]), **self._stage1_options())
+            self.physics_solver = fit.solver
             self.physics.requires_grad_(False)
             if self.logger is not None and self.trainer.is_global_zero:
                 metrics = {f"physics/identification/{k}": v for k, v in fit.parameters.items()}

@@ -27,8 +27,9 @@ from torchpaml._metrics import fit_percent, mismatch
 from torchpaml._render.figures import dominant_frequency, overlay_figure, residual_figure, spectrum_figure
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
 from torchpaml._residual.hybrid import Hybrid
-from torchpaml._simulate.warm import WarmStart
+from torchpaml._simulate.simulator import simulate
 from torchpaml._simulate.solvers import Solver
+from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["HybridSystem"]
 
@@ -52,8 +53,8 @@ class HybridSystem(L.LightningModule):
             (``torch.optim.lr_scheduler.ExponentialLR``; 1 keeps it constant). A decay lets Adam settle
             instead of spiking late in training; being per epoch, it resumes exactly from a checkpoint.
         solver: the solver of a learned force's model (the physics inside the ODE with an :class:`MLPForce`,
-            :mod:`~torchpaml._simulate.solvers`); default the physics' own, the one stage 1 resolved. The physics
-            alone always simulates with its own.
+            :mod:`~torchpaml._simulate.solvers`); default the one stage 1 resolved (:attr:`physics_solver`), with
+            which the physics alone always simulates.
         witness_amplitude: $\alpha$ of the certificates' witness input $\alpha\cos\omega t$; default the
             Chebyshev residual's $\alpha$, else max|u| of the training data.
         witness_omega: $\omega$ of the witness input, rad/s.
@@ -81,6 +82,8 @@ class HybridSystem(L.LightningModule):
             raise ValueError(f"lr_decay must lie in (0, 1], got {lr_decay}")
         self.optimizer_name, self.lr, self.max_iter, self.lr_decay = optimizer, float(lr), int(max_iter), lr_decay
         self.solver = solver
+        #: The solver stage 1's fit resolved (``PhysicsEstimate.solver``); ``None`` (``Auto()``) before it.
+        self.physics_solver: Solver | None = None
         self.witness = (witness_amplitude, float(witness_omega), float(witness_duration))
         self.physics: nn.Module
         self.residual: nn.Module | None = None
@@ -111,9 +114,10 @@ class HybridSystem(L.LightningModule):
         ``warm``: a nonlinear model's Newton warm start (:func:`~torchpaml.simulate`), see :meth:`warm_start`.
         """
         if self.residual is None:
-            y = self.physics(t, u, warm=warm)
+            y = simulate(self.physics, t, u, warm=warm, solver=self.physics_solver)
             return y, y
-        return Hybrid(self.physics, self.residual)(t, u, warm=warm, solver=self.solver)
+        return Hybrid(self.physics, self.residual)(t, u, warm=warm, solver=self.solver,
+                                                   physics_solver=self.physics_solver)
 
     def warm_start(self, split: str, batch_idx: int) -> WarmStart:
         """The warm start of one batch of ``split``: every epoch simulates the same batches (the loaders do not
@@ -135,7 +139,7 @@ class HybridSystem(L.LightningModule):
         samples (:func:`~torchpaml._fit.residual_fit.project`); sets the residual's coefficients to $c$.
         """
         t, u, y = batch["t"], batch["u"], batch["y"]
-        y_physics = self.physics(t, u)
+        y_physics = simulate(self.physics, t, u, solver=self.physics_solver)
         regressors = scored(batch, self.residual.regressors(t, u))
         coefficients, fitted = project(regressors, scored(batch, y - y_physics)[..., 0])
         self.residual.set_coefficients(coefficients.detach())
@@ -271,13 +275,13 @@ class HybridSystem(L.LightningModule):
         hybrid = Hybrid(self.physics, self.residual)
 
         def fitted_residual(generator):
-            return lambda t, u, y: hybrid(t, u, solver=self.solver)[1] - y
+            return lambda t, u, y: hybrid(t, u, solver=self.solver, physics_solver=self.physics_solver)[1] - y
 
         scalars = {}
         for name in self.identified_names:
             c = incompatibility_certificates(
-                self.physics, fitted_residual, alpha=amplitude, parameter=name, omega=omega, duration=duration, draws=1
-            )
+                self.physics, fitted_residual, alpha=amplitude, parameter=name, omega=omega, duration=duration, draws=1,
+                solver=self.physics_solver)
             scalars[f"{self.stage}/witness/certificate_zeroth"] = c.zeroth[0]
             scalars[f"{self.stage}/witness/certificate_first_{name}"] = c.first[0]
         return scalars

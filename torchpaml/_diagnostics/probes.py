@@ -13,13 +13,14 @@ from collections.abc import Sequence
 
 import torch
 
+from torchpaml._data import Experiment
 from torchpaml._errors import DataError, SimulationError
-from torchpaml._physics.base import complete_state
+from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._grid import uniform_step
 from torchpaml._simulate.lti import simulate_lti
 from torchpaml._simulate.shooting import solve_shooting
-from torchpaml._simulate.solvers import engine_solver
-from torchpaml._simulate.simulator import checked_output
+from torchpaml._simulate.solvers import FixedStep
+from torchpaml._simulate.blowup import checked_output
 
 __all__ = ["Secant", "TangentLinear", "assigned"]
 
@@ -46,7 +47,7 @@ class TangentLinear:
     The probes of one effect are one exact simulation (a filter) per record, with a row per strength.
     """
 
-    def __init__(self, base, train: list, initial_states: list[torch.Tensor]):
+    def __init__(self, base: AbstractPhysics, train: list[Experiment], initial_states: list[torch.Tensor]):
         A, B, C, _ = (m.detach() for m in base.state_space())
         n = A.shape[0]
         self.base, self.A, self.C = base, A, C
@@ -57,10 +58,10 @@ class TangentLinear:
                 u = record.u[None]
                 states = simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, B.shape[1], dtype=A.dtype), h, u,
                                       x0.reshape(1, n), record.hold)
-                self.records.append((record.t - record.t[0], u, states, h, record.hold))
+                self.records.append((record.elapsed, u, states, h, record.hold))
 
     @classmethod
-    def of(cls, base, train: list, initial_states: list[torch.Tensor]) -> TangentLinear | None:
+    def of(cls, base: AbstractPhysics, train: list[Experiment], initial_states: list[torch.Tensor]) -> TangentLinear | None:
         """The tangent-linear model when ``base`` is linear physics on uniform records, else ``None``."""
         if base.state_space() is None:
             return None
@@ -102,18 +103,19 @@ class TangentLinear:
 class Secant:
     """Outputs of ``base + effect`` near the base, by simulations in the shooting engine warm-started from the base's trajectory.
 
-    For a nonlinear base (or non-uniform records), where :class:`TangentLinear` does not apply. A probe
+    For a nonlinear base (or non-uniform records), where :class:`TangentLinear` does not apply; ``solver``: the
+    fixed-step solver the base was fitted with (:func:`~torchpaml._simulate.solvers.engine_solver`). A probe
     at a small strength stays close to the base, so Newton, started from the base's converged states,
     needs a sweep or two instead of the several of a cold start.
     """
 
-    def __init__(self, base, train: list, initial_states: list[torch.Tensor]):
-        self.records = []
+    def __init__(self, base: AbstractPhysics, train: list[Experiment], initial_states: list[torch.Tensor],
+                 solver: FixedStep):
+        self.records, self.solver = [], solver
         with torch.no_grad():
             for record, x0 in zip(train, initial_states, strict=True):
-                t, u, start, hold = record.t - record.t[0], record.u[None], x0.reshape(1, -1), record.hold
-                guess = solve_shooting(base, t, u, start, engine_solver(base), sensitivities=False,
-                                       hold=hold).trajectory
+                t, u, start, hold = record.elapsed, record.u[None], x0.reshape(1, -1), record.hold
+                guess = solve_shooting(base, t, u, start, solver, sensitivities=False, hold=hold).trajectory
                 self.records.append((t, u, start, hold, guess))
 
     def outputs(self, extended) -> torch.Tensor:
@@ -122,7 +124,7 @@ class Secant:
         with torch.no_grad():
             for t, u, start, hold, guess in self.records:
                 start = complete_state(extended, start, 1)  # an effect's own states start at their declared values
-                states = solve_shooting(extended, t, u, start, engine_solver(extended), sensitivities=False,
+                states = solve_shooting(extended, t, u, start, self.solver, sensitivities=False,
                                         guess=guess, hold=hold).trajectory
                 parts.append(checked_output(extended.output(states, u), t).flatten())
         return torch.cat(parts)
