@@ -14,13 +14,3 @@ def grid():
     from torchpaml._signals import time_grid
 
     return time_grid(20.0, 0.01)
-
-
-SLOW_FOLDERS = ("diagnosis", "e2e")
-
-
-def pytest_collection_modifyitems(config, items):
-    """End-to-end runs (the CLI, the hidden-effect diagnoses) are the slow lane: `make test` skips them."""
-    for item in items:
-        if any(f"/tests/{folder}/" in str(item.fspath) for folder in SLOW_FOLDERS):
-            item.add_marker(pytest.mark.slow)

@@ -38,7 +38,15 @@ from torchpaml._diagnostics import (
     residual_analysis,
     validity_map,
 )
-from torchpaml._errors import DataError, DomainError, PhysicsError, ResolutionError, SimulationError
+from torchpaml._errors import (
+    ConfigurationError,
+    DataError,
+    DomainError,
+    PhysicsError,
+    ResolutionError,
+    SimulationError,
+    TorchpamlError,
+)
 from torchpaml._fit import (
     PhysicsEstimate,
     ResidualEstimate,
@@ -247,11 +255,13 @@ __all__ = [
     "JointFit",
     "ExperimentDataModule",
     # errors
+    "ConfigurationError",
     "DataError",
     "DomainError",
     "ResolutionError",
     "SimulationError",
     "PhysicsError",
+    "TorchpamlError",
 ]
 
 #: Names whose module imports Lightning: loaded on first access, so that ``import torchpaml`` stays light.

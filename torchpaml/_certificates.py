@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._residual import ChebyshevHammerstein, MLPResidual
 from torchpaml._signals import cosine, time_grid
 from torchpaml._simulate.simulator import simulate
@@ -117,7 +118,7 @@ def incompatibility_certificates(
     transient = duration / 2 if transient is None else transient
     periods = math.floor((duration - transient) / period)
     if periods < 1:
-        raise ValueError(f"no whole drive period of {period:.3g} s fits after the transient; increase duration")
+        raise ConfigurationError(f"no whole drive period of {period:.3g} s fits after the transient; increase duration")
     window = torch.zeros(len(t), dtype=torch.bool)
     window[len(t) - periods * samples_per_period :] = True
     start, end = float(t[window][0]), float(t[-1]) + dt

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import torch
 
-from torchpaml._errors import DataError
+from torchpaml._errors import ConfigurationError, DataError
 
 __all__ = ["HOLDS", "check_hold", "uniform_step"]
 
@@ -19,7 +19,7 @@ HOLDS = ("foh", "zoh")
 def check_hold(hold: str) -> str:
     """``hold`` itself; a ``ValueError`` naming the choices if it is not one of :data:`HOLDS`."""
     if hold not in HOLDS:
-        raise ValueError(f"hold must be 'foh' (the input linear between samples) or 'zoh' (held constant until the "
+        raise ConfigurationError(f"hold must be 'foh' (the input linear between samples) or 'zoh' (held constant until the "
                          f"next sample), got {hold!r}")
     return hold
 

@@ -17,6 +17,8 @@ import math
 from dataclasses import dataclass, replace
 
 import torch
+
+from torchpaml._errors import ConfigurationError
 from torch import nn
 from torch.nn.utils import parametrize
 
@@ -44,7 +46,7 @@ class Real(nn.Module):
 
     def check(self, name: str, value: float) -> None:
         if not math.isfinite(value):
-            raise ValueError(f"parameter {name!r} must be finite, got {value}")
+            raise ConfigurationError(f"parameter {name!r} must be finite, got {value}")
 
     def __repr__(self) -> str:
         return "real"
@@ -61,7 +63,7 @@ class Positive(nn.Module):
 
     def check(self, name: str, value: float) -> None:
         if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"parameter {name!r} must be positive and finite, got {value}; pass a value > 0")
+            raise ConfigurationError(f"parameter {name!r} must be positive and finite, got {value}; pass a value > 0")
 
     def __repr__(self) -> str:
         return "> 0"
@@ -73,7 +75,7 @@ class Interval(nn.Module):
     def __init__(self, lower: float, upper: float):
         super().__init__()
         if not lower < upper:
-            raise ValueError(f"Interval needs lower < upper, got ({lower}, {upper})")
+            raise ConfigurationError(f"Interval needs lower < upper, got ({lower}, {upper})")
         self.lower, self.upper = float(lower), float(upper)
 
     def forward(self, raw: torch.Tensor) -> torch.Tensor:
@@ -84,7 +86,7 @@ class Interval(nn.Module):
 
     def check(self, name: str, value: float) -> None:
         if not self.lower < value < self.upper:
-            raise ValueError(
+            raise ConfigurationError(
                 f"parameter {name!r} must lie in the open interval ({self.lower}, {self.upper}), got {value}"
             )
 
@@ -117,7 +119,7 @@ def register_parameters(module: nn.Module, declarations: list[PhysicalParameter]
     names = [d.name for d in declarations]
     unknown = sorted(set(learn) - set(names))
     if unknown:
-        raise ValueError(f"cannot learn unknown parameter(s) {unknown}; {type(module).__name__} has {names}")
+        raise ConfigurationError(f"cannot learn unknown parameter(s) {unknown}; {type(module).__name__} has {names}")
     declarations = [d if d.constraint is not None else replace(d, constraint=Real()) for d in declarations]
     module._physical = {d.name: d for d in declarations}
     for d in declarations:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 
 import torch
+
+from torchpaml._errors import ConfigurationError
 from scipy import signal as sps
 
 __all__ = ["time_grid", "sine", "cosine", "pseudorandom", "pseudorandom_knots", "multisine", "chirp"]
@@ -19,7 +21,7 @@ def time_grid(duration: float, dt: float) -> torch.Tensor:
     """$t_k = k\\,\\Delta t$ for $k = 0, \\dots, N-1$ with $N = \\mathrm{round}(T/\\Delta t)$; shape (N,)."""
     n = int(round(duration / dt))
     if n < 2:
-        raise ValueError(f"duration {duration} s at dt {dt} s gives {n} samples; need at least 2")
+        raise ConfigurationError(f"duration {duration} s at dt {dt} s gives {n} samples; need at least 2")
     return torch.arange(n, dtype=torch.float64) * dt
 
 

@@ -23,6 +23,8 @@ from torchpaml import (
     write_report,
 )
 
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
 forces = load("discovery/forces.py")
 
 REASONS = ("refitted: ", "not refitted: ", "undecided: ")

@@ -41,6 +41,8 @@ from torchpaml import (
 
 from torchpaml._diagnostics.closed_form import refit_closed_form
 
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
 run = load("discovery/run.py")
 forces = load("discovery/forces.py")
 

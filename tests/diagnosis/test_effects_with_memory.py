@@ -4,6 +4,8 @@ The hidden-effect oscillator (``test_hidden_effects.py``) with a 6-sample input 
 for training and validation (the regime where the residual, a filter of the input, generalises).
 """
 
+import pytest
+
 import math
 
 import torch
@@ -15,6 +17,8 @@ from torchpaml import (ConstantForce, InputLag, QuadraticStiffness, Simulated, d
                        rank_missing_effects)
 
 from test_hidden_effects import CASES, physics, records, truth
+
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 
 
 def lagged_records():

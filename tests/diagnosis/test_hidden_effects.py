@@ -21,6 +21,8 @@ from torchpaml import (
     Simulated,
 )
 
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
 NOISE = 0.02
 
 #: effect -> (strength, peak input[, its other parameters]): strong enough to be seen above 2 % noise, within the

@@ -1,8 +1,11 @@
 """The verdict on a long record decides by effect size: right physics with coloured sensor noise is complete."""
 
+import pytest
 import torch
 
 from torchpaml import Oscillator, Simulated, diagnose
+
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 
 
 def coloured(record, share: float, pole: float, seed: int):

@@ -14,6 +14,8 @@ from torchpaml import (
     Simulated,
 )
 
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
 
 @pytest.fixture(scope="module")
 def gappy():

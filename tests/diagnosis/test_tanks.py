@@ -7,10 +7,14 @@ rest at levels (6, 4). Inputs: 3 V plus pseudorandom knots every 40 s (+-1.5 V),
 initial state is estimated; the two best-scored candidates are refitted.
 """
 
+import pytest
+
 import torch
 
 from experiment_modules import load
 from torchpaml import diagnose, Experiment, mismatch, pseudorandom, time_grid
+
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 
 tanks = load("cascaded_tanks/tanks.py")
 X0 = torch.tensor([[6.0, 4.0]], dtype=torch.float64)

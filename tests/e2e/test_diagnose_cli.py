@@ -14,6 +14,8 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 from torchpaml.cli import main
 from torchpaml import EFFECTS
 
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
 FIGURES = ("compare", "residual_analysis", "error_by_amplitude", "ranking", "ladder")
 OUTPUTS_PAGE = Path(__file__).resolve().parents[2] / "docs" / "reference" / "outputs.md"
 

@@ -19,6 +19,8 @@ import pytest
 from experiment_modules import load
 from torchpaml.cli import main
 
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
 OUTPUTS_PAGE = os.path.join(os.path.dirname(__file__), "..", "..", "docs", "reference", "outputs.md")
 
 pytest.importorskip("ray", reason="torchpaml fleet needs the extra: pip install 'torchpaml[fleet]'")

@@ -9,6 +9,8 @@ import pytest
 
 from torchpaml._paper import PaperSetup, reproduce_alpha
 
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
 ROOT = Path(__file__).resolve().parents[2]
 
 

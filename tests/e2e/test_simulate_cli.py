@@ -8,6 +8,8 @@ import pytest
 from torchpaml import build_model, Experiment, simulate
 from torchpaml._signals import pseudorandom_knots
 
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
 
 def run(*args, cwd):
     return subprocess.run([sys.executable, "-m", "torchpaml", "simulate", *args], capture_output=True, text=True,

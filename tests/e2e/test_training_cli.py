@@ -11,6 +11,8 @@ from tensorboard.backend.event_processing.event_accumulator import EventAccumula
 
 from torchpaml.cli.lightning import run_lightning
 
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = sorted((ROOT / "experiments").rglob("*.yaml"))
 SPLITS = ("identification", "train", "validation", "test")

@@ -12,7 +12,7 @@ from typing import Literal
 import torch
 
 from torchpaml._data.experiment import Experiment
-from torchpaml._errors import DataError
+from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._signals import cosine, multisine, pseudorandom, sine, time_grid
 from torchpaml._simulate import Auto, simulate
@@ -88,9 +88,9 @@ class Simulated(ExperimentSource):
         rtol: float = MEASUREMENT_RTOL,
     ):
         if signal not in ("sine", "cosine", "pseudorandom", "multisine"):
-            raise ValueError(f"unknown signal {signal!r}; use 'sine', 'cosine', 'pseudorandom' or 'multisine'")
+            raise ConfigurationError(f"unknown signal {signal!r}; use 'sine', 'cosine', 'pseudorandom' or 'multisine'")
         if not amplitude > 0 or not noise >= 0:
-            raise ValueError(f"need amplitude > 0 and noise >= 0, got amplitude={amplitude}, noise={noise}")
+            raise ConfigurationError(f"need amplitude > 0 and noise >= 0, got amplitude={amplitude}, noise={noise}")
         self.system, self.signal, self.amplitude = system, signal, float(amplitude)
         self.seeds = [0] if seeds is None else list(seeds)
         self.duration, self.dt, self.omega, self.knot_period = duration, dt, omega, knot_period

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import torch
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._data import Experiment
 from torchpaml._metrics import fit_percent, mismatch, rmse
 
@@ -50,7 +51,7 @@ def compare(
     records = [experiments] if isinstance(experiments, Experiment) else list(experiments)
     names = [r.name for r in records]
     if len(set(names)) != len(names):
-        raise ValueError(f"experiment names must differ to be told apart in the comparison, got {names}")
+        raise ConfigurationError(f"experiment names must differ to be told apart in the comparison, got {names}")
     rows, outputs = [], {}
     for record in records:
         t, u, y = record.batch()

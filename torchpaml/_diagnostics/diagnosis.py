@@ -40,7 +40,7 @@ from torchpaml._diagnostics.ladder import Ladder, model_ladder
 from torchpaml._diagnostics.ranking import ModelScore, Ranking
 from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.validity import AmplitudeBins, error_by_amplitude
-from torchpaml._errors import DataError
+from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._grid import uniform_step
 from torchpaml._data.simulation import simulate_record
 from torchpaml._budget import REFIT_BUDGET
@@ -208,7 +208,7 @@ def diagnose(
         ranking_options: forwarded to :func:`~torchpaml._diagnostics.rank_missing_effects` (``refit_budget`` among them).
     """
     if budget is not None and not budget > 0:
-        raise ValueError(f"budget is the seconds the diagnosis' refits may take, > 0; got {budget}")
+        raise ConfigurationError(f"budget is the seconds the diagnosis' refits may take, > 0; got {budget}")
     deadline = None if budget is None else time.perf_counter() + budget
     train = [train] if isinstance(train, Experiment) else list(train)
     validation = [validation] if isinstance(validation, Experiment) else list(validation)

@@ -52,6 +52,7 @@ from dataclasses import dataclass, field
 
 import torch
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._data import Experiment
 from torchpaml._diagnostics.closed_form import fit_closed_form, refit_closed_form
 from torchpaml._diagnostics.ranking import EffectEvidence, ModelScore, Ranking, as_records
@@ -242,7 +243,7 @@ def discover_missing_force(
     baseline, rule, initial_state = ranking.baseline, ranking.rule, ranking.initial_state
     physics = baseline.model
     if physics.output_dim != 1 or physics.input_dim != 1:
-        raise ValueError(f"discovery handles one input and one output; {physics.display_name} has "
+        raise ConfigurationError(f"discovery handles one input and one output; {physics.display_name} has "
                          f"{physics.input_dim} and {physics.output_dim}")
     variables, equations = variables_of(physics)
     terms = library.build(physics)

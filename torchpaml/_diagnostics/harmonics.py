@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from torchpaml._errors import ConfigurationError
+
 __all__ = ["HarmonicFingerprint", "harmonic_fingerprint"]
 
 
@@ -59,9 +61,9 @@ def harmonic_fingerprint(
     t, u, e = t[keep], u[keep], e[keep]
     nyquist = math.pi / float(t[1] - t[0])
     if harmonics * fundamental >= nyquist:
-        raise ValueError(f"harmonic {harmonics} of {fundamental:g} rad/s is above the Nyquist {nyquist:.4g} rad/s")
+        raise ConfigurationError(f"harmonic {harmonics} of {fundamental:g} rad/s is above the Nyquist {nyquist:.4g} rad/s")
     if t[-1] - t[0] < 2 * math.pi / fundamental:
-        raise ValueError("the window holds less than one period of the fundamental; lengthen the record")
+        raise ConfigurationError("the window holds less than one period of the fundamental; lengthen the record")
     k = np.arange(1, harmonics + 1)
     phase = fundamental * t[:, None] * k[None, :]
     design = np.hstack([np.ones((len(t), 1)), np.cos(phase), np.sin(phase)])

@@ -56,7 +56,7 @@ from torch import nn
 
 from torchpaml._data import Experiment
 from torchpaml._diagnostics.selection import SelectionRule
-from torchpaml._errors import ResolutionError, SimulationError
+from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._budget import REFIT_BUDGET, Budget, OverBudget
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
 from torchpaml._metrics import mismatch
@@ -291,13 +291,13 @@ def _first_order(extended, name: str, fit: PhysicsEstimate, scale: float, probe:
     outputs = [None if out is None else out / scale
                for out in engine.probes(extended, name, (0.0, probe, 2 * probe, -probe))]
     if outputs[0] is None:
-        raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0; "
+        raise ConfigurationError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0; "
                          "give it a constraint that allows 0 (e.g. Real())")
     extended.assign(**{name: 0.0})
     outputs = [out if out is not None else outputs[0] for out in outputs]
     off = float(torch.linalg.vector_norm(outputs[0] - reference) / torch.linalg.vector_norm(reference))
     if off > 1e-3:
-        raise ValueError(
+        raise ConfigurationError(
             f"effect {name.partition('.')[0]!r} changes the model at zero strength (by {100 * off:.2g} % of the "
             f"output); its strength parameter {name!r} must switch the effect off at 0. Rewrite the effect so that "
             "its first declared parameter scales it"
@@ -427,7 +427,7 @@ def _halving_strength(extended, name: str, start: float, fit, states: list[torch
         except SimulationError:
             if strength == 0.0:
                 raise
-    raise ValueError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0")
+    raise ConfigurationError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0")
 
 
 def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None, warm: list[WarmStart],
@@ -576,16 +576,16 @@ def rank_missing_effects(
     train, validation = as_records(train), as_records(validation)
     names = [c.name for c in candidates]
     if len(set(names)) != len(names):
-        raise ValueError(f"candidate effects must have distinct names, got {names}")
+        raise ConfigurationError(f"candidate effects must have distinct names, got {names}")
     present = set(getattr(physics, "effects", {}))
     if present & set(names):
-        raise ValueError(f"candidate(s) {sorted(present & set(names))} are already in {physics.display_name}; "
+        raise ConfigurationError(f"candidate(s) {sorted(present & set(names))} are already in {physics.display_name}; "
                          "drop them from the candidates")
     base_model = getattr(physics, "base", physics)
     skipped = {c.name: reason for c in candidates if (reason := c.applies_to(base_model)) is not None}
     candidates = [c for c in candidates if c.name not in skipped]
     if skipped and not candidates:  # checked before any fit
-        raise ValueError(f"none of the candidate effects applies to {physics.display_name}: "
+        raise ConfigurationError(f"none of the candidate effects applies to {physics.display_name}: "
                          + "; ".join(f"{name}: {reason}" for name, reason in skipped.items())
                          + ". Give candidates written for this physics (`candidates:` in a --config file)")
     base = copy.deepcopy(physics)

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+
+from torchpaml._errors import ConfigurationError
 from scipy import linalg, signal as sps
 from scipy import stats
 
@@ -60,7 +62,7 @@ def residual_analysis(u, e, lags: int = 25, confidence: float = 0.99) -> Residua
     u, e = _numpy(u), _numpy(e)
     n = len(e)
     if len(u) != n or n <= 2 * lags:
-        raise ValueError(f"need u and e of one length above 2*lags = {2 * lags}, got {len(u)} and {n}")
+        raise ConfigurationError(f"need u and e of one length above 2*lags = {2 * lags}, got {len(u)} and {n}")
     u, e = u - u.mean(), e - e.mean()
 
     def correlation(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # r_ab(tau) for tau = -(n-1)..(n-1)

@@ -15,6 +15,8 @@ $$ \mathrm{BIC} = n \ln(\mathrm{SSE}/n) + k \ln n, \qquad \mathrm{AIC} = n\ln(\m
 
 from __future__ import annotations
 
+from torchpaml._errors import ConfigurationError
+
 import math
 from dataclasses import dataclass
 from typing import Literal
@@ -41,9 +43,9 @@ class SelectionRule:
 
     def __post_init__(self):
         if self.criterion not in ("bic", "aic"):
-            raise ValueError(f"criterion must be 'bic' or 'aic', got {self.criterion!r}")
+            raise ConfigurationError(f"criterion must be 'bic' or 'aic', got {self.criterion!r}")
         if not 0 <= self.min_share < 1:
-            raise ValueError(f"min_share is a share of the validation mismatch, in [0, 1); got {self.min_share}")
+            raise ConfigurationError(f"min_share is a share of the validation mismatch, in [0, 1); got {self.min_share}")
 
     def value(self, sse: float, samples: int, parameters: int) -> float:
         """The criterion of a fit with sum of squared errors ``sse`` on ``samples`` samples and ``parameters`` fitted."""

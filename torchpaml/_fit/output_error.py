@@ -6,6 +6,8 @@ from collections.abc import Callable
 
 import torch
 
+from torchpaml._errors import ConfigurationError
+
 __all__ = ["minimize_output_error"]
 
 
@@ -64,6 +66,6 @@ def minimize_output_error(
             opt.step()
         iterations = max_iter
     else:
-        raise ValueError(f"optimizer must be 'lbfgs' or 'adam', got {optimizer!r}")
+        raise ConfigurationError(f"optimizer must be 'lbfgs' or 'adam', got {optimizer!r}")
     with torch.no_grad():
         return float(loss_fn()), int(iterations)

@@ -41,7 +41,7 @@ import torch
 from scipy.optimize import least_squares
 
 from torchpaml._data import Experiment
-from torchpaml._errors import ResolutionError, SimulationError
+from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._budget import Budget
 from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solver
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
@@ -90,18 +90,18 @@ def _raw_bounds(physics, names: list[str], bounds: dict[str, tuple[float, float]
     lower, upper = np.full(len(names), -np.inf), np.full(len(names), np.inf)
     unknown = sorted(set(bounds) - set(names))
     if unknown:
-        raise ValueError(f"bounds name parameter(s) {unknown} that are not learnable; learnable: {names}")
+        raise ConfigurationError(f"bounds name parameter(s) {unknown} that are not learnable; learnable: {names}")
     for i, name in enumerate(names):
         if name not in bounds:
             continue
         lo, hi = (float(b) for b in bounds[name])
         if not lo < hi:
-            raise ValueError(f"bounds for {name!r} need lower < upper, got ({lo}, {hi})")
+            raise ConfigurationError(f"bounds for {name!r} need lower < upper, got ({lo}, {hi})")
         owner, leaf = physics._owner(name)
         constraint = getattr(owner.parametrizations, leaf)[0]
         value = float(getattr(owner, leaf).detach())
         if not lo <= value <= hi:
-            raise ValueError(f"{name} = {value:g} starts outside its bounds ({lo:g}, {hi:g}); assign a start inside")
+            raise ConfigurationError(f"{name} = {value:g} starts outside its bounds ({lo:g}, {hi:g}); assign a start inside")
         with torch.no_grad():
             ends = constraint.right_inverse(torch.tensor([lo, hi], dtype=torch.float64)).nan_to_num(-np.inf, np.inf, -np.inf)
         lower[i], upper[i] = float(ends[0]), float(ends[1])
@@ -145,17 +145,17 @@ def fit_physics(
             :class:`~torchpaml._budget.OverBudget` raised past its limit (default: neither).
     """
     if initial_state not in ("rest", "estimate"):
-        raise ValueError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
+        raise ConfigurationError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
     estimate_x0 = initial_state == "estimate"
     switch = solver is None or isinstance(solver, Auto)  # may go on with the implicit method
     solver = _starting_solver(solver)
     records = [records] if isinstance(records, Experiment) else list(records)
     if start_states is not None and (not estimate_x0 or len(start_states) != len(records)):
-        raise ValueError(f"start_states needs initial_state='estimate' and one state per record ({len(records)}), got "
+        raise ConfigurationError(f"start_states needs initial_state='estimate' and one state per record ({len(records)}), got "
                          f"{len(start_states)} with initial_state={initial_state!r}")
     names = physics.learnable_names()
     if not names and not estimate_x0:
-        raise ValueError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")
+        raise ConfigurationError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")
     p, n_state = len(names), physics.state_dim
     lower, upper = _raw_bounds(physics, names, bounds or {})
     if estimate_x0:
@@ -274,7 +274,7 @@ def _starting_solver(solver: Solver | None) -> FixedStep:
     if solver is None or isinstance(solver, Auto):
         return engine_solver(solver)
     if not isinstance(solver, FixedStep):
-        raise ValueError(f"fit_physics integrates with RK4(...) or TRBDF2(...) (or the default), got {solver!r}; "
+        raise ConfigurationError(f"fit_physics integrates with RK4(...) or TRBDF2(...) (or the default), got {solver!r}; "
                          "linear physics on a uniform grid takes the exact path by itself")
     return solver.at(1) if solver.substeps == "auto" else solver
 

@@ -38,6 +38,7 @@ import torch
 from torch import nn
 from torch.nn.utils import parametrize
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._parameters import Interval, describe_parameters, format_table, with_uncertainty
 
 __all__ = ["AbstractPhysics", "SecondOrderPhysics", "complete_state", "state_vector"]
@@ -53,7 +54,7 @@ def complete_state(physics, x0: torch.Tensor | None, batch: int) -> torch.Tensor
         return rest
     n, k = rest.shape[-1], x0.shape[-1]
     if k > n:
-        raise ValueError(f"x0 has {k} states, but {physics.display_name} has {n}: {list(physics.state_names)}")
+        raise ConfigurationError(f"x0 has {k} states, but {physics.display_name} has {n}: {list(physics.state_names)}")
     return x0 if k == n else torch.cat([x0, rest.to(x0)[..., k:]], dim=-1)
 
 
@@ -135,7 +136,7 @@ class AbstractPhysics(nn.Module):
         known = set(self.physical_parameters())
         for name in names:
             if name not in known:
-                raise ValueError(f"{self.display_name} has no physical parameter {name!r}; known: {sorted(known)}")
+                raise ConfigurationError(f"{self.display_name} has no physical parameter {name!r}; known: {sorted(known)}")
             owner, leaf = self._owner(name)
             getattr(owner.parametrizations, leaf).original.requires_grad_(learn)
         return self
@@ -145,7 +146,7 @@ class AbstractPhysics(nn.Module):
         for name, value in values.items():
             owner, leaf = self._owner(name)
             if leaf not in getattr(owner, "_physical", {}):
-                raise ValueError(f"{self.display_name} has no physical parameter {name!r}")
+                raise ConfigurationError(f"{self.display_name} has no physical parameter {name!r}")
             owner._physical[leaf].constraint.check(name, float(value))
             with torch.no_grad():
                 setattr(owner, leaf, torch.tensor(float(value), dtype=torch.float64))
@@ -159,13 +160,13 @@ class AbstractPhysics(nn.Module):
         """
         owner, leaf = self._owner(name)
         if leaf not in getattr(owner, "_physical", {}):
-            raise ValueError(f"{self.display_name} has no physical parameter {name!r}")
+            raise ConfigurationError(f"{self.display_name} has no physical parameter {name!r}")
         value = float(getattr(owner, leaf).detach())
         interval = Interval(lower, upper)
         try:
             interval.check(name, value)
         except ValueError as err:
-            raise ValueError(f"{err}; start {name} inside the bounds, e.g. assign({name}=...)") from None
+            raise ConfigurationError(f"{err}; start {name} inside the bounds, e.g. assign({name}=...)") from None
         learn = getattr(owner.parametrizations, leaf).original.requires_grad
         parametrize.remove_parametrizations(owner, leaf, leave_parametrized=True)
         parametrize.register_parametrization(owner, leaf, interval, unsafe=True)

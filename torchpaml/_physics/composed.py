@@ -20,6 +20,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._parameters import describe_parameters
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
 from torchpaml._physics.effects import AbstractEffect
@@ -30,7 +31,7 @@ __all__ = ["ComposedModel", "compose"]
 def compose(physics, effect: AbstractEffect) -> ComposedModel:
     """``physics + effect`` (see the module docstring)."""
     if not isinstance(effect, AbstractEffect):
-        raise TypeError(f"can only add an AbstractEffect to physics, got {type(effect).__name__}")
+        raise ConfigurationError(f"can only add an AbstractEffect to physics, got {type(effect).__name__}")
     if isinstance(physics, ComposedModel):
         return ComposedModel(physics.base, [*physics.effects.values(), effect])
     return ComposedModel(physics, [effect])
@@ -48,14 +49,14 @@ class ComposedModel(AbstractPhysics):
         for effect in effects:
             reason = effect.applies_to(base)
             if reason is not None:
-                raise TypeError(f"cannot add {effect.name or type(effect).__name__}: {reason}; write the effect into "
+                raise ConfigurationError(f"cannot add {effect.name or type(effect).__name__}: {reason}; write the effect into "
                                 "your own physics instead, or choose effects that apply")
         names = [e.name for e in effects]
         clashes = sorted({n for n in names if names.count(n) > 1})
         if clashes:
-            raise ValueError(f"effect(s) {clashes} added twice; each effect may appear once in a model")
+            raise ConfigurationError(f"effect(s) {clashes} added twice; each effect may appear once in a model")
         if not all(names):
-            raise ValueError("every effect needs a non-empty class attribute `name`")
+            raise ConfigurationError("every effect needs a non-empty class attribute `name`")
         self.base = base
         self.effects = nn.ModuleDict({e.name: e for e in effects})
         self.state_names = (*base.state_names,
@@ -104,9 +105,9 @@ class ComposedModel(AbstractPhysics):
         """$\\ddot x$ of a second-order base with the effects, x, v, u of shape (batch,) -> (batch,); effects with own
         states have no acceleration of (x, v) alone."""
         if not isinstance(self.base, SecondOrderPhysics):
-            raise TypeError(f"acceleration is defined for second-order physics; {self.base.display_name} is not")
+            raise ConfigurationError(f"acceleration is defined for second-order physics; {self.base.display_name} is not")
         if self.state_dim > 2:
-            raise TypeError(f"{self.display_name} carries effect states {list(self.state_names[2:])}: its acceleration "
+            raise ConfigurationError(f"{self.display_name} carries effect states {list(self.state_names[2:])}: its acceleration "
                             "depends on them too; call derivative(t, x, u) with the whole state")
         return self.derivative(t, torch.stack([x, v], dim=-1), u[..., None])[..., 1]
 

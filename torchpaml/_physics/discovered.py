@@ -25,6 +25,7 @@ from collections.abc import Mapping, Sequence
 
 import torch
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effects import AbstractEffect
 from torchpaml._physics.terms import compile_term, state_columns, variables_of
@@ -60,7 +61,7 @@ class DiscoveredForce(AbstractEffect):
         coefficients = [0.0] * len(terms) if coefficients is None else [float(c) for c in coefficients]
         equations = ["acceleration"] * len(terms) if equations is None else list(equations)
         if not len(coefficients) == len(equations) == len(terms):
-            raise ValueError(f"DiscoveredForce needs one coefficient and one equation per term: {len(terms)} terms, "
+            raise ConfigurationError(f"DiscoveredForce needs one coefficient and one equation per term: {len(terms)} terms, "
                              f"{len(coefficients)} coefficients, {len(equations)} equations")
         self.equations = equations
         mechanical = set(equations) <= {"acceleration"}
@@ -69,7 +70,7 @@ class DiscoveredForce(AbstractEffect):
         self._compiled = compiled
         pairs = list(zip(self.equations, self.terms, strict=True))
         if len(set(pairs)) != len(pairs):
-            raise ValueError(f"DiscoveredForce terms must be distinct within an equation, got {pairs}")
+            raise ConfigurationError(f"DiscoveredForce terms must be distinct within an equation, got {pairs}")
         self.parameter_names = [f"c_{_slug(t)}" if mechanical else f"c_{e}_{_slug(t)}" for e, t in pairs]
         starts = {**({"eps": eps} if eps is not None else {}), **dict(widths or {})}
         self.width_names = sorted({w for c in compiled for w in c.widths})

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._physics.effects import EFFECTS
 from torchpaml._physics.oscillator import Oscillator
 from torchpaml._physics.pendulum import Pendulum
@@ -22,7 +23,7 @@ def parse_assignments(items: list[str] | None, what: str) -> dict[str, float]:
                 raise ValueError
             values[name.strip()] = float(value)
         except ValueError:
-            raise ValueError(f"{what} {item!r} is not NAME=NUMBER (e.g. zeta=0.3)") from None
+            raise ConfigurationError(f"{what} {item!r} is not NAME=NUMBER (e.g. zeta=0.3)") from None
     return values
 
 
@@ -33,16 +34,16 @@ def build_model(physics: str, parameters: dict[str, float] | None = None, effect
     parameters can be set in ``parameters`` as ``effect.parameter`` (``coulomb_friction.eps``).
     """
     if physics not in PHYSICS:
-        raise ValueError(f"unknown physics {physics!r}; choose one of {sorted(PHYSICS)}")
+        raise ConfigurationError(f"unknown physics {physics!r}; choose one of {sorted(PHYSICS)}")
     model = PHYSICS[physics](learn=())
     for name, strength in (effects or {}).items():
         if name not in EFFECTS:
-            raise ValueError(f"unknown effect {name!r}; choose from {sorted(EFFECTS)}")
+            raise ConfigurationError(f"unknown effect {name!r}; choose from {sorted(EFFECTS)}")
         effect = EFFECTS[name]()
         model = model + effect
         model.assign(**{f"{name}.{effect.strength}": strength})
     known = set(model.physical_parameters())
     unknown = sorted(set(parameters or {}) - known)
     if unknown:
-        raise ValueError(f"unknown parameter(s) {unknown} for {model.display_name}; it has {sorted(known)}")
+        raise ConfigurationError(f"unknown parameter(s) {unknown} for {model.display_name}; it has {sorted(known)}")
     return model.assign(**(parameters or {}))

@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import sympy
 import torch
 
+from torchpaml._errors import ConfigurationError
+
 __all__ = ["CompiledTerm", "TermLibrary", "compile_term", "state_columns", "variables_of", "width_symbol"]
 
 _FUNCTIONS: dict[type, Callable[[torch.Tensor], torch.Tensor]] = {
@@ -52,7 +54,7 @@ def variables_of(physics) -> tuple[tuple[str, ...], dict[str, int]]:
     names = tuple(base.state_names)
     bad = [n for n in names if not n.isidentifier() or n == "u" or n.startswith("eps")]
     if bad:
-        raise ValueError(f"{base.display_name}'s state names {bad} cannot name variables of a term; give state_names "
+        raise ConfigurationError(f"{base.display_name}'s state names {bad} cannot name variables of a term; give state_names "
                          "that are Python identifiers other than 'u' and not starting with 'eps'")
     return (*names, "u"), {name: i for i, name in enumerate(names)}
 
@@ -98,7 +100,7 @@ def _compile(node: sympy.Basic, text: str) -> Callable[[dict], torch.Tensor]:
     if node.is_Pow:
         base, exponent = node.args
         if not exponent.is_Number:
-            raise ValueError(f"term {text!r}: the exponent {exponent} must be a number")
+            raise ConfigurationError(f"term {text!r}: the exponent {exponent} must be a number")
         inner, power = _compile(base, text), float(exponent)
         if power == 0.5:
             return lambda values: torch.sqrt(inner(values))
@@ -109,7 +111,7 @@ def _compile(node: sympy.Basic, text: str) -> Callable[[dict], torch.Tensor]:
     if function is not None:
         inner = _compile(node.args[0], text)
         return lambda values: function(inner(values))
-    raise ValueError(f"term {text!r}: {type(node).__name__} is not supported; write terms with +, *, **, Abs, sign, "
+    raise ConfigurationError(f"term {text!r}: {type(node).__name__} is not supported; write terms with +, *, **, Abs, sign, "
                      f"sqrt, tanh, exp, sin, cos")
 
 
@@ -125,14 +127,14 @@ def compile_term(text: str, variables: Sequence[str] | None) -> CompiledTerm:
         symbols = {name: sympy.Symbol(name, real=True) for name in names}
         expression = sympy.sympify(text, locals=symbols)
     except (sympy.SympifyError, SyntaxError, TypeError) as error:
-        raise ValueError(f"term {text!r} is not a sympy expression ({error}); write it like 'x**2*tanh(v/eps)'") from None
+        raise ConfigurationError(f"term {text!r} is not a sympy expression ({error}); write it like 'x**2*tanh(v/eps)'") from None
     used = {s.name for s in expression.free_symbols}
     unknown = sorted(n for n in used if variables is not None and n not in variables and not n.startswith("eps"))
     if unknown:
-        raise ValueError(f"term {text!r} uses {unknown}, which are not variables of this physics; its variables are "
+        raise ConfigurationError(f"term {text!r} uses {unknown}, which are not variables of this physics; its variables are "
                          f"{list(variables)} (and widths named eps...)")
     if expression.is_Number and expression != 1:
-        raise ValueError(f"term {text!r} is a number; write the constant term as '1' (its coefficient is fitted)")
+        raise ConfigurationError(f"term {text!r} is a number; write the constant term as '1' (its coefficient is fitted)")
     canonical = str(expression)
     function = _compile(expression, canonical)
     like = sorted(n for n in used if not n.startswith("eps"))

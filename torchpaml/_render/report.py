@@ -22,12 +22,12 @@ from pathlib import Path
 import yaml
 from torch.utils.tensorboard import SummaryWriter
 
-from torchpaml._data import Experiment
-from torchpaml._diagnostics.diagnosis import Diagnosis, diagnose
+from torchpaml._diagnostics.diagnosis import Diagnosis
+from torchpaml._diagnostics.ranking import ModelScore
 from torchpaml._render.figures import diagnosis_figures
 from torchpaml._render.schema import diagnosis_to_dict
 
-__all__ = ["diagnose_to_folder", "write_report"]
+__all__ = ["write_report"]
 
 
 def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
@@ -50,20 +50,6 @@ def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
                 f"# {discovery.text}\n# add to `candidates:` of a `torchpaml diagnose --config` file\n"
                 + yaml.safe_dump([discovery.effect.to_config()], sort_keys=False))
     return path
-
-
-def diagnose_to_folder(physics, candidates: list, data: str | Path, validation: str | Path, out: str | Path, *,
-                       hold: str | None = None, **options) -> Diagnosis:
-    """Diagnose ``physics`` on the CSV records ``data`` and ``validation`` and write the report into ``out``.
-
-    The one pipeline of a unit's records: ``torchpaml diagnose`` and each task of ``torchpaml fleet``
-    run it. ``hold`` is how the input moved between samples (default: the files' metadata, else
-    ``"foh"``); ``options`` go to :func:`~torchpaml.diagnose`.
-    """
-    train, held_out = Experiment.from_csv(data, hold=hold), Experiment.from_csv(validation, hold=hold)
-    diagnosis = diagnose(physics, candidates, train, held_out, **options)
-    write_report(diagnosis, out)
-    return diagnosis
 
 
 def _tensorboard(diagnosis: Diagnosis, content: dict, figures: dict, folder: Path) -> None:
@@ -91,6 +77,19 @@ def _table(header: list[str], rows: list[list]) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{html.escape(str(c))}</td>" for c in row) + "</tr>" for row in rows)
     return f"<table><tr>{head}</tr>{body}</table>"
+
+
+def _parameter_table(score: ModelScore) -> str:
+    """The fitted model's parameters as an HTML table: value, standard error and 95 % interval where fitted."""
+    def spread(row: dict) -> list[str]:
+        if "std" not in row:
+            return ["", ""]
+        low, high = row["interval"]
+        return [f"{row['std']:.3g}", f"[{low:.4g}, {high:.4g}]"]
+
+    return _table(["parameter", "value", "± std", "95 % interval", "unit", "constraint", "status", "meaning"],
+                  [[r["name"], f"{r['value']:.6g}", *spread(r), r["unit"], r["constraint"],
+                    "learned" if r["learnable"] else "fixed", r["meaning"]] for r in score.rows()])
 
 
 def _pct(value: float | None) -> str:
@@ -132,10 +131,10 @@ def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
         ranking += _table(["model", "effect", "seconds"],
                           [[u["model"], u["effect"], f"{u['seconds']:.1f}"] for u in content["undecided"]])
     images = "".join(f'<h3>{name}</h3><img src="figures/{name}.png" alt="{name}">' for name in figures)
-    final = html.escape(diagnosis.ladder.final.describe())
+    final = f"<p>{html.escape(diagnosis.ladder.final.equation)}</p>{_parameter_table(diagnosis.ladder.final)}"
     warning = diagnosis.ladder.final.warning
     if warning is not None:
-        final += f"</pre><p><b>Identifiability.</b> {html.escape(warning)}</p><pre>"
+        final += f"<p><b>Identifiability.</b> {html.escape(warning)}</p>"
     return f"""<!doctype html>
 <html><head><meta charset="utf-8"><title>torchpaml diagnosis</title>
 <style>body{{font-family:sans-serif;max-width:1000px;margin:auto}} td,th{{border:1px solid #ccc;padding:3px 6px}}
@@ -146,7 +145,7 @@ table{{border-collapse:collapse}} img{{max-width:100%}}</style></head><body>
 {_pct(base['nrmse_validation'])} %.</p>
 <h2>2. Which effect is missing</h2>{ranking}
 <h2>3. Model ladder</h2>{ladder}<p>The final model, with standard errors and 95 % intervals from the
-Jacobian at the optimum (valid for a white residual):</p><pre>{final}</pre>
+Jacobian at the optimum (valid for a white residual):</p>{final}
 <h2>4. The Chebyshev residual on top</h2>{hybrid}
 {discovery}
 <h2>Figures</h2>{images}

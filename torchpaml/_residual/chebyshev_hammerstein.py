@@ -40,7 +40,7 @@ import math
 import torch
 from torch import nn
 
-from torchpaml._errors import DomainError
+from torchpaml._errors import ConfigurationError, DomainError
 from torchpaml._residual.base import AbstractResidual
 from torchpaml._simulate.lti import simulate_lti
 from torchpaml._grid import uniform_step
@@ -96,13 +96,13 @@ class ChebyshevHammerstein(AbstractResidual):
     ):
         super().__init__()
         if not alpha > 0:
-            raise ValueError(f"alpha must be positive, got {alpha}")
+            raise ConfigurationError(f"alpha must be positive, got {alpha}")
         if not 0 < min_decay < decay < bandwidth:
-            raise ValueError(
+            raise ConfigurationError(
                 f"need 0 < min_decay < decay < bandwidth, got min_decay={min_decay}, decay={decay}, bandwidth={bandwidth}"
             )
         if n < 1 or order < 1:
-            raise ValueError(f"need n >= 1 and order >= 1, got n={n}, order={order}")
+            raise ConfigurationError(f"need n >= 1 and order >= 1, got n={n}, order={order}")
         self.alpha, self.n, self.order = float(alpha), int(n), int(order)
         self.min_decay, self.bandwidth = float(min_decay), float(bandwidth)
         self.degrees = [2 * k + 1 for k in range(1, n + 1)]
@@ -110,7 +110,7 @@ class ChebyshevHammerstein(AbstractResidual):
         if frequencies is None:
             frequencies = _default_frequencies(order)
         if len(frequencies) != pairs or not all(0 < f < bandwidth for f in frequencies):
-            raise ValueError(
+            raise ConfigurationError(
                 f"order {order} needs {pairs} initial frequencies in (0, bandwidth={bandwidth}), got {frequencies}"
             )
         f64 = dict(dtype=torch.float64)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._residual.base import AbstractResidual
 from torchpaml._residual.mlp import ForceAugmented, MLPForce
 from torchpaml._simulate.warm import WarmStart
@@ -33,7 +34,7 @@ class Hybrid(nn.Module):
     def __init__(self, physics: nn.Module, residual: nn.Module):
         super().__init__()
         if not isinstance(residual, (AbstractResidual, MLPForce)):
-            raise TypeError(
+            raise ConfigurationError(
                 f"residual must be an output residual (AbstractResidual) or a learned force (MLPForce), got "
                 f"{type(residual).__name__}"
             )

@@ -16,6 +16,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
 from torchpaml._residual.base import AbstractResidual
 
@@ -58,7 +59,7 @@ class MLPResidual(AbstractResidual):
 
     def forward(self, t, u, y_physics=None):
         if y_physics is None:
-            raise ValueError("MLPResidual needs the physics output: call residual(t, u, y_physics)")
+            raise ConfigurationError("MLPResidual needs the physics output: call residual(t, u, y_physics)")
         signals = torch.cat([u / self.u_scale, y_physics / self.y_scale], dim=-1).transpose(1, 2)  # (B, 2, T)
         first = self.net[0]  # weight (hidden, 2L): channel c at lag L - 1 - j is column c * L + j
         padded = nn.functional.pad(signals, (self.window - 1, 0))  # rest before t0
@@ -89,7 +90,7 @@ class ForceAugmented(SecondOrderPhysics):
         super().__init__()
         base = getattr(physics, "base", physics)  # physics + effects keeps its base's acceleration
         if not isinstance(base, SecondOrderPhysics):
-            raise TypeError(f"ForceAugmented needs second-order (mechanical) physics, got {type(physics).__name__}")
+            raise ConfigurationError(f"ForceAugmented needs second-order (mechanical) physics, got {type(physics).__name__}")
         self.physics, self.force = physics, force
 
     def acceleration(self, t, x, v, u):

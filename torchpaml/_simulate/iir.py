@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 import torch
+
+from torchpaml._errors import ConfigurationError
 from scipy import signal
 
 __all__ = ["iir_filter"]
@@ -106,10 +108,10 @@ def iir_filter(x: torch.Tensor, b: torch.Tensor, a: torch.Tensor) -> torch.Tenso
         forward mode).
     """
     if x.dim() != 3:
-        raise ValueError(f"iir_filter expects x of shape (batch, time, channel), got {tuple(x.shape)}")
+        raise ConfigurationError(f"iir_filter expects x of shape (batch, time, channel), got {tuple(x.shape)}")
     C = x.shape[-1]
     if b.dim() != 2 or b.shape[0] != C or a.dim() != 2 or a.shape[0] != C:
-        raise ValueError(
+        raise ConfigurationError(
             f"iir_filter expects b (channel, n_b) and a (channel, n_a) with channel={C}, "
             f"got b {tuple(b.shape)} and a {tuple(a.shape)}"
         )

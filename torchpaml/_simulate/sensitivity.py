@@ -36,6 +36,7 @@ import torch
 from torch import nn
 from torch.func import functional_call
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._grid import check_hold
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._simulate.lti import discrete_response, discretize, exact_step, foh_exponent
@@ -179,7 +180,7 @@ def output_jacobian(
     x0 = complete_state(physics, x0, u.shape[0]).to(u)
     raw = raw_parameters(physics, names)
     if not raw and not initial_state:
-        raise ValueError(f"output_jacobian needs at least one parameter name; {physics.display_name} has "
+        raise ConfigurationError(f"output_jacobian needs at least one parameter name; {physics.display_name} has "
                          f"{sorted(physics.physical_parameters())}")
     h = exact_step(physics, t)
     if h is not None:  # the same routing as simulate's Auto()

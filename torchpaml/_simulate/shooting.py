@@ -51,7 +51,7 @@ import math
 import torch
 from torch.nn.utils import parametrize
 
-from torchpaml._errors import SimulationError
+from torchpaml._errors import ConfigurationError, SimulationError
 from torchpaml._budget import checkpoint
 from torchpaml._grid import check_hold
 from torchpaml._simulate.lti import exact_step, simulate_lti
@@ -365,10 +365,10 @@ def solve_shooting(
     """
     check_hold(hold)
     if not hasattr(solver, "sweep") or solver.substeps == "auto":
-        raise TypeError(f"the shooting engine needs RK4 or TRBDF2 with a whole number of substeps, got {solver!r}")
+        raise ConfigurationError(f"the shooting engine needs RK4 or TRBDF2 with a whole number of substeps, got {solver!r}")
     tol = tol if tol is not None else GRADIENT_TOL if sensitivities else NEWTON_TOL
     if warm is not None and not isinstance(warm, WarmStart):
-        raise TypeError(f"warm must be a torchpaml.WarmStart kept per record (warm=tp.WarmStart()), got "
+        raise ConfigurationError(f"warm must be a torchpaml.WarmStart kept per record (warm=tp.WarmStart()), got "
                         f"{type(warm).__name__}")
     if warm is not None and warm.states is not None:
         guess = warm.states

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import torch
 
-from torchpaml._errors import DataError
+from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._grid import check_hold
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._simulate.solvers import Auto, Solver
@@ -57,10 +57,10 @@ def simulate(
     if u.dim() != 3 or u.shape[1] != t.shape[-1]:
         raise DataError(f"u must have shape (batch, time={t.shape[-1]}, channel), got {tuple(u.shape)}")
     if isinstance(x0, Solver):
-        raise TypeError(f"simulate's fourth argument is the initial state; pass the solver by name: solver={x0!r}")
+        raise ConfigurationError(f"simulate's fourth argument is the initial state; pass the solver by name: solver={x0!r}")
     solver = Auto() if solver is None else solver
     if not isinstance(solver, Solver):
-        raise TypeError(f"solver must be one of torchpaml's solvers (Auto(), Exact(), RK4(), TRBDF2(), Dopri5()), "
+        raise ConfigurationError(f"solver must be one of torchpaml's solvers (Auto(), Exact(), RK4(), TRBDF2(), Dopri5()), "
                         f"got {solver!r}")
     x0 = complete_state(physics, x0, u.shape[0]).to(u)
     return solver.integrate(physics, t, u, x0, warm=warm, hold=check_hold(hold), knots=knots, blowup=blowup)

@@ -31,7 +31,7 @@ from typing import ClassVar, Literal
 
 import torch
 
-from torchpaml._errors import ResolutionError, SimulationError
+from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._grid import uniform_step
 from torchpaml._simulate.blowup import checked_output
 from torchpaml._simulate.fixed_step import simulate_fixed_step
@@ -65,7 +65,7 @@ class Solver(ABC):
 
 def _check_rtol(rtol: float) -> None:
     if not rtol > 0:
-        raise ValueError(f"rtol must be positive, got {rtol}")
+        raise ConfigurationError(f"rtol must be positive, got {rtol}")
 
 
 @dataclass(frozen=True)
@@ -79,7 +79,7 @@ class Exact(Solver):
     def integrate(self, physics, t, u, x0, *, warm, hold, knots, blowup):
         matrices = physics.state_space()
         if matrices is None:
-            raise ValueError(f"solver=Exact() needs linear physics; {physics.display_name} is nonlinear. Use RK4()")
+            raise ConfigurationError(f"solver=Exact() needs linear physics; {physics.display_name} is nonlinear. Use RK4()")
         return checked_output(simulate_lti(*matrices, uniform_step(t), u, x0, hold), t, blowup)
 
 
@@ -110,10 +110,10 @@ class FixedStep(Solver):
     def __post_init__(self):
         m = self.substeps
         if m != "auto" and (isinstance(m, bool) or not isinstance(m, int) or m < 1):
-            raise ValueError(f"substeps must be 'auto' (to rtol) or a whole number of steps per sample interval, at "
+            raise ConfigurationError(f"substeps must be 'auto' (to rtol) or a whole number of steps per sample interval, at "
                              f"least 1; got {m!r}")
         if isinstance(self.segment, bool) or not isinstance(self.segment, int) or self.segment < 1:
-            raise ValueError(f"segment must be a whole number of steps, at least 1; got {self.segment!r}")
+            raise ConfigurationError(f"segment must be a whole number of steps, at least 1; got {self.segment!r}")
         _check_rtol(self.rtol)
 
     def at(self, substeps: int) -> FixedStep:
@@ -187,7 +187,7 @@ class Dopri5(Solver):
 
     def integrate(self, physics, t, u, x0, *, warm, hold, knots, blowup):
         if hold == "zoh":
-            raise ValueError("hold='zoh' is simulated by the exact path and by the fixed-step solvers, not by Dopri5, "
+            raise ConfigurationError("hold='zoh' is simulated by the exact path and by the fixed-step solvers, not by Dopri5, "
                              "whose interpolant is first-order; use solver=RK4() or the default")
         states = simulate_ode(physics, t, u, x0, method="dopri5", rtol=self.rtol, atol=self.atol,
                               adjoint=self.adjoint, max_num_steps=self.max_num_steps, knots=knots)

@@ -29,7 +29,7 @@ from collections.abc import Callable
 
 import torch
 
-from torchpaml._errors import ResolutionError, SimulationError
+from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 
 __all__ = ["MAX_SUBSTEPS", "next_substeps", "output_gap", "simulate_to_tolerance"]
 
@@ -61,7 +61,7 @@ def simulate_to_tolerance(run: Callable[[int], torch.Tensor], start: int, rtol: 
     name) go into the :class:`~torchpaml._errors.ResolutionError` raised when $2m$ would pass :data:`MAX_SUBSTEPS`.
     """
     if not rtol > 0:
-        raise ValueError(f"rtol must be positive, got {rtol}")
+        raise ConfigurationError(f"rtol must be positive, got {rtol}")
     m = min(start, MAX_SUBSTEPS // 2)
     with torch.no_grad():
         coarse = None

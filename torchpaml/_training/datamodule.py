@@ -19,7 +19,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from torchpaml._data import Experiment
-from torchpaml._errors import DataError
+from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._data.sources import ExperimentSource
 
 __all__ = ["ExperimentDataModule", "collate"]
@@ -72,7 +72,7 @@ class ExperimentDataModule(L.LightningDataModule):
     ):
         super().__init__()
         if window is not None and not window > 0 or washout < 0:
-            raise ValueError(f"need window > 0 and washout >= 0, got window={window}, washout={washout}")
+            raise ConfigurationError(f"need window > 0 and washout >= 0, got window={window}, washout={washout}")
         self.sources = {"identification": identification, "train": train, "validation": validation, "test": test}
         self.window, self.washout, self.batch_size = window, washout, batch_size
         self._records: dict[str, list[Experiment]] = {}
@@ -80,7 +80,7 @@ class ExperimentDataModule(L.LightningDataModule):
     def records(self, split: str) -> list[Experiment]:
         """The experiments of ``split`` (loaded once); empty if the split has no source."""
         if split not in SPLITS:
-            raise ValueError(f"unknown split {split!r}; use one of {SPLITS}")
+            raise ConfigurationError(f"unknown split {split!r}; use one of {SPLITS}")
         if split not in self._records:
             source = self.sources[split]
             records = [] if source is None else source.experiments()

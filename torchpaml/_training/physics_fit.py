@@ -5,6 +5,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._data import Experiment
 from torchpaml._fit import fit_physics
 from torchpaml._metrics import mismatch
@@ -57,7 +58,7 @@ class PhysicsFit(HybridSystem):
         self.save_hyperparameters(ignore=["physics"])
         self.attach(physics, None, bounds)
         if not self._identified:
-            raise ValueError(f"{physics.display_name} has no learnable parameter; list the ones to fit in learn=[...]")
+            raise ConfigurationError(f"{physics.display_name} has no learnable parameter; list the ones to fit in learn=[...]")
 
         self.automatic_optimization = False
 

@@ -21,6 +21,7 @@ import lightning as L
 import torch
 from torch import nn
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._certificates import incompatibility_certificates
 from torchpaml._fit.residual_fit import project
 from torchpaml._metrics import fit_percent, mismatch
@@ -77,9 +78,9 @@ class HybridSystem(L.LightningModule):
     ):
         super().__init__()
         if optimizer not in ("lbfgs", "adam"):
-            raise ValueError(f"optimizer must be 'lbfgs' or 'adam', got {optimizer!r}")
+            raise ConfigurationError(f"optimizer must be 'lbfgs' or 'adam', got {optimizer!r}")
         if not 0 < lr_decay <= 1:
-            raise ValueError(f"lr_decay must lie in (0, 1], got {lr_decay}")
+            raise ConfigurationError(f"lr_decay must lie in (0, 1], got {lr_decay}")
         self.optimizer_name, self.lr, self.max_iter, self.lr_decay = optimizer, float(lr), int(max_iter), lr_decay
         self.solver = solver
         #: The solver stage 1's fit resolved (``PhysicsEstimate.solver``); ``None`` (``Auto()``) before it.
@@ -149,7 +150,7 @@ class HybridSystem(L.LightningModule):
     # -- training ----------------------------------------------------------------------------
     def setup(self, stage: str) -> None:
         if self.trainer.world_size > 1 and self.uses_projection:
-            raise ValueError(
+            raise ConfigurationError(
                 "the Chebyshev residual's variable projection solves one least-squares problem over all records "
                 "and does not run across processes; train it with devices: 1 (it is fast), or use DDP for "
                 "stage 1 and for the MLP baselines"

@@ -8,9 +8,11 @@
 - ``torchpaml simulate`` writes measurements of library physics plus effects, and ``torchpaml paper``
   reproduces the paper (argparse; :mod:`torchpaml.cli.commands`).
 
-**The error rule.** A mistake in the user's input (a record, a value, a name, a model that blows up)
-ends the command with one line, ``torchpaml COMMAND: error: MESSAGE``, and exit status 2, whichever
-stack parsed the arguments. Argument-syntax errors exit 2 through the parsers themselves.
+**The error rule.** A mistake in the user's input (a record, a value, a name, a model that blows up: the
+:class:`~torchpaml.TorchpamlError` family) ends the command with one line, ``torchpaml COMMAND: error: MESSAGE``,
+and exit status 2, whichever stack parsed the arguments. Argument-syntax errors exit 2 through the parsers
+themselves. Any other exception is a bug in torchpaml: it is printed with its traceback and a line asking to
+report it, and the command exits 1.
 """
 
 from __future__ import annotations
@@ -20,19 +22,20 @@ from collections.abc import Callable
 import traceback
 from contextlib import contextmanager
 
-from torchpaml._errors import DataError, DomainError, SimulationError
+from torchpaml._errors import TorchpamlError
 
 __all__ = ["USER_ERRORS", "main"]
 
 #: Exceptions that report a mistake in the user's input; each ends a command with one line and exit status 2.
-USER_ERRORS = (DataError, DomainError, SimulationError, ValueError, TypeError)
+USER_ERRORS = (TorchpamlError,)
 LIGHTNING_COMMANDS = ("fit", "validate", "test")
 
 
 @contextmanager
 def user_errors_exit(prog: str, verbose: bool = False):
-    """The error rule (module docstring): a user error becomes one line on stderr and exit status 2; ``verbose``
-    prints the traceback of its cause (an exception raised in the user's own physics) first."""
+    """The error rule (module docstring): a user error becomes one line on stderr and exit status 2 (``verbose``
+    prints the traceback of its cause, an exception raised in the user's own physics, first); anything else is a
+    bug, printed with its traceback, and exit status 1."""
     try:
         yield
     except USER_ERRORS as err:
@@ -40,6 +43,11 @@ def user_errors_exit(prog: str, verbose: bool = False):
             traceback.print_exception(err.__cause__, file=sys.stderr)
         print(f"{prog}: error: {err}", file=sys.stderr)
         raise SystemExit(2) from None
+    except Exception as bug:  # noqa: BLE001 - not the user's mistake: the traceback is the report
+        traceback.print_exception(bug, file=sys.stderr)
+        print(f"{prog}: internal error: {type(bug).__name__} is a bug in torchpaml, not a mistake in your input; "
+              "please report it to torchpaml's issue tracker with the traceback above", file=sys.stderr)
+        raise SystemExit(1) from None
 
 
 def _command(name: str) -> Callable[[list[str], str], object]:

@@ -18,6 +18,7 @@ from typing import Literal
 
 from jsonargparse import ActionConfigFile, ArgumentError, ArgumentParser
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._budget import REFIT_BUDGET
 from torchpaml.cli.progress import progress_lines
@@ -25,8 +26,8 @@ from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import EFFECTS, AbstractEffect
 from torchpaml._physics.registry import PHYSICS, parse_assignments
 
-__all__ = ["check_options", "config_mistake", "diagnose_command", "diagnose_parser", "normalise_arguments", "resolve_models",
-           "run_diagnose"]
+__all__ = ["check_options", "config_mistake", "diagnose_command", "diagnose_parser", "diagnose_to_folder",
+           "normalise_arguments", "resolve_models", "run_diagnose"]
 
 #: Repeatable flags, spelled ``--fix NAME=VALUE`` on the command line (jsonargparse appends with ``+``).
 REPEATED = {"--fix": "--fix+", "--effect": "--effects+", "--term": "--terms+"}
@@ -37,14 +38,14 @@ SWITCHES = ("--discover", "--verbose", "--quiet")
 def _physics(physics: str | AbstractPhysics, fix: list[str] | None) -> AbstractPhysics:
     if isinstance(physics, str):
         if physics not in PHYSICS:
-            raise ValueError(f"unknown physics {physics!r}; choose one of {sorted(PHYSICS)}, or give a class_path "
+            raise ConfigurationError(f"unknown physics {physics!r}; choose one of {sorted(PHYSICS)}, or give a class_path "
                              "to your own physics in a --config file")
         physics = PHYSICS[physics]()
         physics.set_learnable(*physics.physical_parameters())
     values = parse_assignments(fix, "--fix")
     unknown = sorted(set(values) - set(physics.physical_parameters()))
     if unknown:
-        raise ValueError(f"--fix names unknown parameter(s) {unknown}; {physics.display_name} has "
+        raise ConfigurationError(f"--fix names unknown parameter(s) {unknown}; {physics.display_name} has "
                          f"{sorted(physics.physical_parameters())}")
     return physics.assign(**values).set_learnable(*values, learn=False)
 
@@ -54,11 +55,11 @@ def _candidates(effects: list[str] | None, candidates: list[AbstractEffect] | No
     names = list(EFFECTS) if effects is None and candidates is None else list(effects or [])
     unknown = sorted(set(names) - set(EFFECTS))
     if unknown:
-        raise ValueError(f"unknown effect(s) {unknown}; the library has {sorted(EFFECTS)}; put your own effects "
+        raise ConfigurationError(f"unknown effect(s) {unknown}; the library has {sorted(EFFECTS)}; put your own effects "
                          "under `candidates:` in a --config file")
     chosen = [EFFECTS[name]() for name in names] + list(candidates or [])
     if not chosen and not discover:
-        raise ValueError("no candidate effects: name library effects with --effect, list `candidates:` in --config, "
+        raise ConfigurationError("no candidate effects: name library effects with --effect, list `candidates:` in --config, "
                          "or run the discovery alone (--discover)")
     return chosen
 
@@ -75,15 +76,15 @@ def check_options(shortlist: int, min_share: float, refit_budget: float = REFIT_
                   ) -> None:
     """Refuse ranking options that cannot work, before any fit."""
     if shortlist < 1:
-        raise ValueError(f"--shortlist must be at least 1 (how many best-scored candidates are refitted), "
+        raise ConfigurationError(f"--shortlist must be at least 1 (how many best-scored candidates are refitted), "
                          f"got {shortlist}")
     if not 0 <= min_share < 1:
-        raise ValueError(f"--min_share is a share of the validation mismatch, in [0, 1); got {min_share}")
+        raise ConfigurationError(f"--min_share is a share of the validation mismatch, in [0, 1); got {min_share}")
     if not refit_budget > 0:
-        raise ValueError(f"--refit_budget is how many times its rung's fit a refit may take, > 0 (default "
+        raise ConfigurationError(f"--refit_budget is how many times its rung's fit a refit may take, > 0 (default "
                          f"{REFIT_BUDGET:g}); got {refit_budget}")
     if budget is not None and not budget > 0:
-        raise ValueError(f"--budget is the seconds the diagnosis' refits may take, > 0; got {budget}")
+        raise ConfigurationError(f"--budget is the seconds the diagnosis' refits may take, > 0; got {budget}")
 
 
 def diagnose_command(
@@ -138,11 +139,10 @@ def diagnose_command(
         quiet: no progress lines (by default each stage, the rung, the candidate refitted, the discovery's
             steps, is printed on stderr with the seconds since the start).
     """
-    from torchpaml._render.report import diagnose_to_folder
     from torchpaml._render.tables import ranking_table
 
     if Path(out).is_file():
-        raise ValueError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
+        raise ConfigurationError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
     check_options(shortlist, min_share, refit_budget, budget)
     model, chosen = resolve_models(physics, fix, effects, candidates, discover)
     diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold, shortlist=shortlist,
@@ -155,6 +155,24 @@ def diagnose_command(
     return json.loads(path.read_text())
 
 
+def diagnose_to_folder(physics, candidates: list, data: str | Path, validation: str | Path, out: str | Path, *,
+                       hold: str | None = None, **options):
+    """Diagnose ``physics`` on the CSV records ``data`` and ``validation`` and write the report into ``out``.
+
+    The one pipeline of a unit's records, from files: ``torchpaml diagnose`` and each task of
+    ``torchpaml fleet`` run it. ``hold`` is how the input moved between samples (default: the files' metadata, else
+    ``"foh"``); ``options`` go to :func:`~torchpaml.diagnose`.
+    """
+    from torchpaml._data import Experiment
+    from torchpaml._diagnostics.diagnosis import diagnose
+    from torchpaml._render.report import write_report
+
+    train, held_out = Experiment.from_csv(data, hold=hold), Experiment.from_csv(validation, hold=hold)
+    diagnosis = diagnose(physics, candidates, train, held_out, **options)
+    write_report(diagnosis, out)
+    return diagnosis
+
+
 def normalise_arguments(argv: list[str], switches: tuple[str, ...] = SWITCHES) -> list[str]:
     """``--fix NAME=VALUE`` and ``--effect NAME`` repeated, and ``switches`` alone, as jsonargparse reads them."""
     argv = [f"{a}=true" if a in switches and (i + 1 == len(argv) or argv[i + 1].startswith("--")) else a
@@ -165,7 +183,8 @@ def normalise_arguments(argv: list[str], switches: tuple[str, ...] = SWITCHES) -
 
 
 def config_mistake(report: str) -> str:
-    """jsonargparse's report of a config mistake in one line: the key and the reason (the deepest error of a union)."""
+    """jsonargparse's report of a config mistake in one line: the key (or the class whose ``init_args`` it refused) and
+    the reason (the deepest error of a union)."""
     key = re.search(r'[Kk]ey "([^"]+)"', report)
     lines = [line.strip() for line in report.splitlines()]
     errors = [line.removeprefix("- ") for line in lines if line.startswith("- ") and "Expected a <class" not in line]
@@ -174,7 +193,8 @@ def config_mistake(report: str) -> str:
         reason = f"{reason} {lines[lines.index(next(l for l in lines if l.endswith(reason))) + 1]}"
     reason = re.sub(r"Expected a dot import path string: (\S+)", r"cannot import class_path \1; give module.Class of an "
                     r"importable class, or a library name", reason)
-    where = f"config key {key.group(1)!r}: " if key else ""
+    owner = re.search(r"class_path='([^']+)'", report)
+    where = f"config key {key.group(1)!r}: " if key else f"config class_path {owner.group(1)}: " if owner else ""
     return f"{where}{reason}"
 
 
@@ -191,9 +211,13 @@ def run_diagnose(argv: list[str], prog: str = "torchpaml diagnose") -> dict:
     parser = diagnose_parser(prog)
     parser.exit_on_error = False  # a config mistake is summarised in one line (config_mistake)
     try:
-        config = parser.instantiate(parser.parse_args(normalise_arguments(argv)))
+        config = parser.parse_args(normalise_arguments(argv))
     except ArgumentError as error:
-        raise ValueError(config_mistake(str(error))) from None
+        raise ConfigurationError(config_mistake(str(error))) from None
+    try:
+        config = parser.instantiate(config)
+    except ValueError as error:  # a class that refuses its init_args (jsonargparse reports it as a union mismatch)
+        raise ConfigurationError(config_mistake(str(error))) from None
     del config["config"]
     with progress_lines(prog, enabled=not config["quiet"]):
         return diagnose_command(**config)

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import yaml
 
-from torchpaml._errors import DataError
+from torchpaml._errors import ConfigurationError, DataError
 from torchpaml.cli.diagnose import SWITCHES, check_options, diagnose_parser, normalise_arguments, resolve_models
 from torchpaml.cli.fleet_unit import diagnose_unit, finished
 
@@ -36,7 +36,7 @@ def _ray():
     try:
         import ray
     except ImportError:
-        raise ValueError("torchpaml fleet runs its units on Ray, which is not installed; install the extra: "
+        raise ConfigurationError("torchpaml fleet runs its units on Ray, which is not installed; install the extra: "
                          "pip install 'torchpaml[fleet]'") from None
     return ray
 
@@ -135,10 +135,10 @@ def run_fleet(argv: list[str], prog: str = "torchpaml fleet") -> dict:
     check_options(checked.shortlist, checked.min_share, checked.refit_budget, checked.budget)
     resolve_models(checked.physics, checked.fix, checked.effects, checked.candidates, checked.discover)
     if fleet["workers"] < 1:
-        raise ValueError(f"--workers must be at least 1, got {fleet['workers']}")
+        raise ConfigurationError(f"--workers must be at least 1, got {fleet['workers']}")
     out = Path(fleet["out"])
     if out.is_file():
-        raise ValueError(f"--out {out} is an existing file; name a folder for the fleet (it is created if missing)")
+        raise ConfigurationError(f"--out {out} is an existing file; name a folder for the fleet (it is created if missing)")
     try:
         result = diagnose_fleet(Path(fleet["units"]), out, plain, address=fleet["address"], workers=fleet["workers"],
                                 force=bool(fleet["force"]), progress=not fleet["quiet"])
