@@ -44,7 +44,7 @@ from torchpaml import (
     model_ladder,
     rank_missing_effects,
 )
-from torchpaml._diagnostics import ranking as ranking_module
+from torchpaml._diagnostics import refits as refits_module
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments" / "discovery"))
 from forces import CubicDamping  # noqa: E402  (F = -c v^3)
@@ -78,7 +78,7 @@ class _RefitTimer:
     """Times the refits of the ranking (``refit_effect``) while it is alive: the rung's fit and the scoring excluded."""
 
     def __init__(self):
-        self.seconds, self.original = 0.0, ranking_module.refit_effect
+        self.seconds, self.original = 0.0, refits_module.refit_effect
 
         def timed(*args, **kwargs):
             start = time.perf_counter()
@@ -87,10 +87,10 @@ class _RefitTimer:
             finally:
                 self.seconds += time.perf_counter() - start
 
-        ranking_module.refit_effect = timed
+        refits_module.refit_effect = timed
 
     def stop(self):
-        ranking_module.refit_effect = self.original
+        refits_module.refit_effect = self.original
 
 
 def refit_times(rung, train, validation) -> list[dict]:
@@ -100,16 +100,16 @@ def refit_times(rung, train, validation) -> list[dict]:
     for effect in default_effects():
         if effect.name in present:
             continue
-        original, ranking_module.GATE_MARGIN = ranking_module.GATE_MARGIN, math.inf  # open the gate: time the refit
+        original, refits_module.GATE_MARGIN = refits_module.GATE_MARGIN, math.inf  # open the gate: time the refit
         timer, start = _RefitTimer(), time.perf_counter()
         try:
             (entry,) = rank_missing_effects(rung, [copy.deepcopy(effect)], train, validation).entries
         finally:
-            ranking_module.GATE_MARGIN = original
+            refits_module.GATE_MARGIN = original
             timer.stop()
         seconds, whole = timer.seconds, time.perf_counter() - start
         extended = copy.deepcopy(rung) + copy.deepcopy(effect)
-        would = ranking_module._cannot_pass(entry.score, SelectionRule(), validation, extended, rung) is None
+        would = refits_module.cannot_pass(entry.score, SelectionRule(), validation, extended, rung) is None
         outcome = ("undecided" if entry.undecided is not None else "failed" if entry.failure else
                    "refitted" if entry.refit is not None else "not refitted")
         rows.append({"effect": effect.name, "seconds": seconds, "ranking_seconds": whole, "outcome": outcome,

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import torch
 
-from torchpaml import Solver, default_effects, diagnose, diagnosis_to_dict, Experiment, simulate_record, write_report
+from torchpaml import Estimate, Ranker, Solver, default_effects, diagnose, diagnosis_to_dict, Experiment, simulate_record, write_report
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mass_spring_damper import frequency_response_start  # noqa: E402  (the user's physics, beside this script)
@@ -77,7 +77,7 @@ def main(argv: list[str] | None = None) -> dict:
     train = Experiment.from_csv(args.data / f"{TRAIN}.csv", name="train")
     tests = {name: Experiment.from_csv(args.data / f"{name}.csv", name=name) for name in TESTS}
     diagnosis = diagnose(frequency_response_start(train), default_effects(), train, tests["test_multisine"],
-                         shortlist=args.shortlist, initial_state="estimate")
+                         ranker=Ranker(shortlist=args.shortlist), initial_state=Estimate())
     write_report(diagnosis, args.out / "diagnosis")
     models = []
     content = diagnosis_to_dict(diagnosis)

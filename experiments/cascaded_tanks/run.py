@@ -11,7 +11,7 @@ sample is used, not even the loader's 5-sample initialisation window.
 1. The physics: :class:`tanks.TwoTanks`, linear outflows. With only the lower level measured, the
    upper level's scale is free: k2 and k4 enter the output only as their product (the fit's
    identifiability warning says so), so k2 is fixed and k1, k3, k4 are learned.
-2. :func:`~torchpaml._diagnostics.diagnose` with ``initial_state="estimate"`` and the candidates
+2. :func:`~torchpaml._diagnostics.diagnose` with ``initial_state=Estimate()`` and the candidates
    ``sqrt_outflow_upper``, ``sqrt_outflow_lower`` (Torricelli), ``upper_overflow`` (the upper tank
    spills above a rim) and ``sensor_clip`` (the level clips at 10 V), plus the library's ``output_saturation`` and ``dead_zone``, which apply to any physics.
 3. Every rung is scored on ``test``.
@@ -34,6 +34,8 @@ from tanks import FREE_SPILL_RATE, MAX_SPILL_RATE, SensorClip, TorricelliOutflow
 
 from torchpaml import (
     DeadZone,
+    Discoverer,
+    Estimate,
     diagnose,
     discovery_to_dict,
     diagnosis_to_dict,
@@ -75,7 +77,7 @@ def main(argv: list[str] | None = None) -> dict:
     train, validation = estimation.window(0, cut, "train"), estimation.window(cut, None, "validation")
     physics = TwoTanks(k1=0.01, k2=0.01, k3=0.01, k4=0.02, learn=("k1", "k3", "k4"))  # 100 s; 2 V/V
     spill_rate = FREE_SPILL_RATE if args.free_spill else MAX_SPILL_RATE
-    diagnosis = diagnose(physics, candidates(spill_rate), train, validation, initial_state="estimate")
+    diagnosis = diagnose(physics, candidates(spill_rate), train, validation, initial_state=Estimate())
     write_report(diagnosis, args.out / "diagnosis")
     models = []
     content = diagnosis_to_dict(diagnosis)  # its uncertainty: null where a parameter is not determined
@@ -90,7 +92,7 @@ def main(argv: list[str] | None = None) -> dict:
     result = {"found": diagnosis.ladder.added, "models": models,
               "hybrid": content["hybrid"], "seconds": time.perf_counter() - start}
     if args.discover:
-        found = diagnose(physics, [], train, validation, initial_state="estimate", discover=True).discovery
+        found = diagnose(physics, [], train, validation, initial_state=Estimate(), discovery=Discoverer()).discovery
         model = (found.discovered or found.physics)
         error = (test.y - simulate_record(model.model, test, model.train_states[0], solver=model.solver)[0])[:, 0]
         rmse = float(error.square().mean().sqrt())

@@ -41,6 +41,8 @@ import numpy as np
 
 from torchpaml import (
     Auto,
+    Discoverer,
+    Ranker,
     default_effects,
     diagnose,
     diagnosis_to_dict,
@@ -111,7 +113,7 @@ def main(argv: list[str] | None = None) -> dict:
     train, validation = split(Experiment.from_csv(args.data / "train_multisine.csv"))
     tests = {name: Experiment.from_csv(args.data / f"{name}.csv") for name in TESTS}
     diagnosis = diagnose(frequency_response_start(train), default_effects(), train, validation,
-                         shortlist=args.shortlist)
+                         ranker=Ranker(shortlist=args.shortlist))
     write_report(diagnosis, args.out / "diagnosis")
     models = []
     content = diagnosis_to_dict(diagnosis)  # its uncertainty: null where a parameter is not determined
@@ -124,7 +126,7 @@ def main(argv: list[str] | None = None) -> dict:
     result = {"found": diagnosis.ladder.added, "models": models,
               "hybrid": content["hybrid"], "seconds": time.perf_counter() - start}
     if args.discover:  # discovery alone, on the linear physics: which force is missing, in closed form
-        found = diagnose(frequency_response_start(train), [], train, validation, discover=True).discovery
+        found = diagnose(frequency_response_start(train), [], train, validation, discovery=Discoverer()).discovery
         discovered = found.discovered
         rmse, nrmse = test_scores(discovered.model, tests, discovered.solver) if discovered is not None else ({}, {})
         result["discovery"] = {**discovery_to_dict(found), "rmse": rmse, "nrmse": nrmse}

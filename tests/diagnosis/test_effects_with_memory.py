@@ -11,7 +11,7 @@ import math
 import torch
 
 from torchpaml import TRBDF2
-from torchpaml._diagnostics import ranking as ranking_module
+from torchpaml._diagnostics import refits as refits_module
 
 from torchpaml import (ConstantForce, InputLag, QuadraticStiffness, Simulated, default_effects, diagnose,
                        rank_missing_effects)
@@ -54,7 +54,7 @@ def test_a_lag_the_data_do_not_have_is_a_failed_refit_not_a_failed_diagnosis(mon
     physics_with_force = (physics() + ConstantForce()).assign(**{"constant_force.f0": 0.5})
     gated = rank_missing_effects(physics_with_force, [InputLag()], train, validation)
     assert gated.entries[0].refit is None and "first-order score" in gated.entries[0].refit_reason
-    monkeypatch.setattr(ranking_module, "GATE_MARGIN", math.inf)
+    monkeypatch.setattr(refits_module, "GATE_MARGIN", math.inf)
     ranking = rank_missing_effects(physics_with_force, [InputLag(), QuadraticStiffness()], train, validation,
                                    shortlist=2)
     lag = next(e for e in ranking.entries if e.effect == "input_lag")

@@ -6,7 +6,6 @@ response. Tolerance: the error of the returned output (relative RMS) is at most 
 integrates each sample interval on its own, so that the first-order hold's corners fall on its step ends.
 """
 
-import copy
 
 import pytest
 import torch

@@ -21,7 +21,7 @@ from torchpaml import (
     simulate,
     time_grid,
 )
-from torchpaml._diagnostics.ranking import GATE_MARGIN, _cannot_pass
+from torchpaml._diagnostics.refits import GATE_MARGIN, cannot_pass
 from torchpaml import _budget as budget_module
 
 
@@ -88,11 +88,11 @@ def test_the_gate_refits_what_could_pass_the_rule_at_its_margin():
     model, base = Oscillator() + CubicStiffness(), Oscillator()
     records = [Experiment(time_grid(10.0, 0.05), torch.zeros(200, 1), torch.ones(200, 1), "r")]
     needed = 1 - (1 - rule.min_share) ** 2
-    assert _cannot_pass(1.01 * needed / GATE_MARGIN, rule, records, model, base) is None
-    why = _cannot_pass(0.99 * needed / GATE_MARGIN, rule, records, model, base)
+    assert cannot_pass(1.01 * needed / GATE_MARGIN, rule, records, model, base) is None
+    why = cannot_pass(0.99 * needed / GATE_MARGIN, rule, records, model, base)
     assert why is not None and "fall of the validation mismatch" in why and "needs 5 %" in why
     strict = SelectionRule(threshold=1e6, min_share=0.0)  # the criterion gain is the binding part
-    assert "criterion gain" in _cannot_pass(0.5, strict, records, model, base)
+    assert "criterion gain" in cannot_pass(0.5, strict, records, model, base)
 
 
 def test_a_refit_over_its_budget_is_undecided_and_says_why(duffing):

@@ -93,7 +93,7 @@ def test_bad_bounds_and_nothing_to_fit_are_refused(grid):
         fit_physics(Oscillator(zeta=2.0), records, bounds={"zeta": (0.1, 1.0)})
     with pytest.raises(ValueError, match="no learnable parameter"):
         fit_physics(Oscillator(learn=()), records)
-    with pytest.raises(ValueError, match="start_states needs initial_state='estimate'"):
+    with pytest.raises(ValueError, match=r"start_states needs initial_state=Estimate\(\)"):
         fit_physics(Oscillator(), records, start_states=[torch.zeros(2, dtype=torch.float64)])
 
 

@@ -65,3 +65,10 @@ def test_the_layers_import_each_other_without_a_circle():
 
 def test_the_simulator_sees_tensors_and_physics_only():
     assert not {"_data", "_fit", "_diagnostics", "_render", "_training", "cli"} & _graph()["_simulate"]
+
+
+def test_no_function_is_longer_than_80_lines():
+    long = [f"{path.relative_to(ROOT.parent)}:{node.name} ({node.end_lineno - node.lineno + 1} lines)"
+            for path in ROOT.rglob("*.py") for node in ast.walk(ast.parse(path.read_text()))
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.end_lineno - node.lineno >= 80]
+    assert long == []

@@ -24,7 +24,8 @@ from torchpaml import (
 )
 from torchpaml._data import Simulated
 from torchpaml._diagnostics.probes import Secant, TangentLinear
-from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, _first_order, refit_effect
+from torchpaml._diagnostics.first_order import first_order
+from torchpaml._diagnostics.refits import REFIT_CRITERION_STEP, refit_effect
 from torchpaml._simulate.solvers import engine_solver
 
 
@@ -56,7 +57,7 @@ def test_order_and_probe_invariance(duffing, effect, order, one_sided):
     name = f"{effect.name}.{effect.strength}"
     scores = []
     for probe in (1e-4, 1e-3):
-        score, found, *_ = _first_order(base + effect, name, fit, float(duffing[0].y.norm()), probe, reference,
+        score, found, *_ = first_order(base + effect, name, fit, float(duffing[0].y.norm()), probe, reference,
                                        Secant(base, duffing[:1], fit.initial_states,
                                               engine_solver(fit.solver)))
         assert found == order
@@ -68,7 +69,7 @@ def test_order_and_probe_invariance(duffing, effect, order, one_sided):
 def test_the_true_effect_explains_almost_all_of_a_small_residual(duffing):
     """Noise-free data and a weak effect: first order is nearly exact, so the score is near 1 and k1 near k3."""
     base, fit, reference = fitted(duffing[0])
-    score, _, strength, _ = _first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(duffing[0].y.norm()),
+    score, _, strength, _ = first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(duffing[0].y.norm()),
                                          1e-4, reference, Secant(base, duffing[:1], fit.initial_states,
                                               engine_solver(fit.solver)))
     assert score > 0.97
@@ -83,7 +84,7 @@ def strong_cubic_first_order():
     base = Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=("zeta", "omega0", "gain"))
     fit = fit_physics(base, record)
     engine = TangentLinear.of(base, [record], fit.initial_states)
-    _, _, strength, move = _first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(record.y.norm()),
+    _, _, strength, move = first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(record.y.norm()),
                                         1e-4, engine.outputs(base) / float(record.y.norm()), engine)
     return base, record, fit, strength, move
 
@@ -212,15 +213,15 @@ def test_candidates_that_do_not_apply_are_skipped_and_listed(duffing):
 def test_a_numerically_null_direction_of_the_physics_does_not_move_the_score():
     """A column that repeats another up to rounding (a parameter at its constraint's limit, an exact degeneracy) adds a
     direction the least squares would keep or drop by its last digits: the projection leaves it out."""
-    from torchpaml._diagnostics.ranking import NULL_DIRECTION, _beyond_physics
+    from torchpaml._diagnostics.first_order import NULL_DIRECTION, beyond_physics
 
     generator = torch.Generator().manual_seed(0)
     J = torch.randn(500, 3, generator=generator, dtype=torch.float64)
     d = torch.randn(500, generator=generator, dtype=torch.float64)
     noise = torch.randn(500, generator=generator, dtype=torch.float64)
     degenerate = torch.cat([J, (J[:, 0] + 1e-14 * noise)[:, None]], dim=1)
-    projected, energy = _beyond_physics(d, J)
-    again, again_energy = _beyond_physics(d, degenerate)
+    projected, energy = beyond_physics(d, J)
+    again, again_energy = beyond_physics(d, degenerate)
     assert again_energy == pytest.approx(energy, rel=1e-9) and torch.allclose(again, projected, atol=1e-9)
     full = d - degenerate @ torch.linalg.lstsq(degenerate, d[:, None], driver="gelsd", rcond=1e-16).solution[:, 0]
     assert float(full @ full) < 0.999 * energy  # the full least squares spans the rounding's direction too

@@ -2,7 +2,7 @@ r"""The closed form refitted with the physics, with honest numbers (step 3 of :m
 
 :func:`refit_closed_form` fits ``physics + DiscoveredForce(terms)`` by output error, then, pass by pass:
 
-* a smoothed sign's width is bounded to what the record resolves (:func:`~torchpaml._diagnostics.discovery.width_range`);
+* a smoothed sign's width is bounded to what the record resolves (:func:`~torchpaml._diagnostics.regressors.width_range`);
   one that ends within :data:`EDGE` of the lower edge is a sign (``tanh(s/eps)`` becomes ``sign(s)``, and
   ``s*sign(s)`` becomes ``Abs(s)``), one at the upper edge is linear (``m*tanh(s/eps)`` becomes ``m*s``);
 * the term whose standard error most exceeds its coefficient (more than :data:`DETERMINED` times) is
@@ -24,7 +24,9 @@ import sympy
 import torch
 
 from torchpaml._data import Experiment
-from torchpaml._diagnostics.ranking import REFIT_CRITERION_STEP, ModelScore, refit_effect, score_model
+from torchpaml._diagnostics.refits import REFIT_CRITERION_STEP, refit_effect
+from torchpaml._diagnostics.results import ModelScore
+from torchpaml._diagnostics.scoring import score_model
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._errors import SimulationError
 from torchpaml._fit import PhysicsEstimate

@@ -3,7 +3,7 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
 :func:`diagnose` runs, on training and validation records:
 
 1. the **model ladder** (:func:`~torchpaml._diagnostics.model_ladder`): the physics fitted, the
-   candidates ranked (:func:`~torchpaml._diagnostics.rank_missing_effects`), the best added while it
+   candidates ranked by the ``ranker`` (:class:`~torchpaml.Ranker`), the best added while it
    beats the current model's criterion by more than the threshold;
 2. **where the fitted physics fails** on the validation records: residual whiteness and input
    cross-correlation (:func:`~torchpaml._diagnostics.residual_analysis`), and the mismatch binned by
@@ -16,7 +16,7 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    reduce it: :data:`~torchpaml._diagnostics.adequacy.NOISE_RATIO`) it says that the physics is
    complete at that noise level. The two residual fits are independent and run in two threads (their
    filtering, in scipy and torch, releases the GIL: 36 s -> 27 s at 100 000 samples, the same numbers);
-4. with ``discover=True``, the **discovery** of a force or rate outside the library on the ladder's
+4. with ``discovery=Discoverer()``, the **discovery** of a force or rate outside the library on the ladder's
    last rung (:func:`~torchpaml._diagnostics.discover_missing_force`: a neural rate in the ODE, then its
    closed form, ranked against the library's best remaining effect), so that it can find a second
    effect on top of a first. It is asked for, not automatic: it trains a
@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import logging
 import time
+import warnings
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -35,18 +36,23 @@ import torch
 
 from torchpaml._data import Experiment
 from torchpaml._diagnostics.adequacy import Adequacy, assess_adequacy
-from torchpaml._diagnostics.discovery import Discovery, discover_missing_force
+from torchpaml._diagnostics.discoverer import Discoverer
+from torchpaml._diagnostics.discovery import Discovery
 from torchpaml._diagnostics.ladder import Ladder, model_ladder
-from torchpaml._diagnostics.ranking import ModelScore, Ranking
+from torchpaml._diagnostics.ranker import Ranker
+from torchpaml._diagnostics.results import ModelScore, Ranking
+from torchpaml._diagnostics.scoring import as_records
+from torchpaml._budget import REFIT_BUDGET
 from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.validity import AmplitudeBins, error_by_amplitude
 from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._grid import uniform_step
 from torchpaml._data.simulation import simulate_record
-from torchpaml._budget import REFIT_BUDGET
 from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters
+from torchpaml._fit.initial_state import InitialState, Rest
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.checks import check_physics
 from torchpaml._physics.effects import AbstractEffect
 from torchpaml._physics.terms import TermLibrary
@@ -134,13 +140,13 @@ class Diagnosis:
         if undecided:
             verdict += (" Undecided (their refits stopped over budget): "
                         + "; ".join(f"{e.effect} on {name} ({e.undecided:.1f} s)" for name, e in undecided)
-                        + ". To decide them, give the refits more time: --refit_budget (refit_budget=, default "
+                        + ". To decide them, give the refits more time: --refit_budget (Ranker(refit_budget=), default "
                         f"{REFIT_BUDGET:g} times the rung's fit) or --budget (budget=, seconds for the whole diagnosis).")
         if self.discovery is not None:
             judged = "recommended" if self.discovery.recommended else "not recommended"
             verdict += f" Discovered force: {self.discovery.text} ({judged}: {self.discovery.reason})."
         elif self.hybrids[-1].adequacy.inadequate:
-            verdict += " To learn the form of what is missing, run the discovery (--discover, or discover=True)."
+            verdict += " To learn the form of what is missing, run the discovery (--discover, or discovery=Discoverer())."
         return verdict
 
 
@@ -178,17 +184,23 @@ def _hybrid(step: ModelScore, train: list[Experiment], validation: list[Experime
     return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy)
 
 
+#: The keywords :func:`diagnose` took before its stages were objects, and the stage each now belongs to.
+LEGACY_RANKER = ("rule", "shortlist", "probe", "max_nfev", "refit_budget")
+
+
 def diagnose(
-    physics,
+    physics: AbstractPhysics,
     candidates: Sequence[AbstractEffect],
     train: Experiment | Sequence[Experiment],
     validation: Experiment | Sequence[Experiment],
     *,
+    ranker: Ranker | None = None,
+    initial_state: str | InitialState = Rest(),
+    start_states: Sequence[torch.Tensor] | None = None,
+    discovery: Discoverer | None = None,
     alpha: float | None = None,
-    discover: bool = False,
-    terms: Sequence[str] = (),
     budget: float | None = None,
-    **ranking_options,
+    **legacy,
 ) -> Diagnosis:
     """Run the whole diagnosis (module docstring).
 
@@ -197,35 +209,30 @@ def diagnose(
         candidates: effects at zero strength.
         train: the training records.
         validation: the validation records.
+        ranker: how each rung's candidates are ranked (:class:`~torchpaml.Ranker`; default ``Ranker()``).
+        initial_state: where the records' simulations start: ``Rest()`` (or ``"rest"``) or ``Estimate()``
+            (``"estimate"``; :mod:`~torchpaml._fit.initial_state`).
+        start_states: with ``Estimate()``, the first fit's starting guesses of the training records' initial states.
+        discovery: also discover a force outside the library (module docstring, step 4) with these settings
+            (:class:`~torchpaml.Discoverer`; ``Discoverer(library=TermLibrary(terms=["x**2*sign(v)"]))`` adds the
+            user's own terms); default ``None``: no discovery.
         alpha: Chebyshev domain of the residual; default 1.05 max |u| over all records.
-        discover: also discover a force outside the library (module docstring, step 4).
-        terms: the user's own terms for the discovery, sympy strings over the physics' variables
-            (:class:`~torchpaml._physics.TermLibrary`), e.g. ``["x**2*sign(v)"]``.
         budget: seconds for the refits of the ladder and of the discovery's search, counted from the call: a refit
             still running then stops, and those not started are not run; each is reported undecided
             (``EffectEvidence.undecided``, ``Discovery.undecided``, named in the verdict). Default: none; each refit
-            keeps its own budget (``refit_budget``, :mod:`torchpaml._budget`).
-        ranking_options: forwarded to :func:`~torchpaml._diagnostics.rank_missing_effects` (``refit_budget`` among them).
+            keeps its own budget (``Ranker.refit_budget``, :mod:`torchpaml._budget`).
+        legacy: the keywords of the earlier signature, still taken with a ``DeprecationWarning``: ``discover`` and
+            ``terms`` (now ``discovery=Discoverer(...)``), and ``rule``, ``shortlist``, ``probe``, ``max_nfev`` and
+            ``refit_budget`` (now ``ranker=Ranker(...)``).
     """
+    ranker, discovery = _stages(ranker, discovery, legacy)
     if budget is not None and not budget > 0:
         raise ConfigurationError(f"budget is the seconds the diagnosis' refits may take, > 0; got {budget}")
     deadline = None if budget is None else time.perf_counter() + budget
-    train = [train] if isinstance(train, Experiment) else list(train)
-    validation = [validation] if isinstance(validation, Experiment) else list(validation)
-    most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
-                                                                 for c in candidates),
-                                                default=0)
-    check_physics(physics, train[0].t, train[0].u)  # before any fit
-    library = TermLibrary(terms=tuple(terms))
-    if discover:
-        library.build(physics)  # a user term that does not parse is named before any fit
-    for record in train + validation:  # checked before any fit
-        if len(record.t) <= 2 * most:
-            raise DataError(f"experiment {record.name!r} has {len(record.t)} samples, too few to fit up to {most} "
-                            f"parameters (the physics' and a candidate's) and judge the fit; give records of more "
-                            f"than {2 * most} samples, or fix parameters")
-        record.require_uniform("diagnose (its Chebyshev-Hammerstein residual, an exactly discretised filter)")
-    ladder = model_ladder(physics, candidates, train, validation, deadline=deadline, **ranking_options)
+    train, validation = as_records(train), as_records(validation)
+    _check_records(physics, candidates, train, validation, discovery)
+    ladder = model_ladder(physics, candidates, train, validation, ranker=ranker, initial_state=initial_state,
+                          start_states=start_states, deadline=deadline)
     base = ladder.steps[0]
     record = validation[0]
     y_model = base.validation_outputs[0]
@@ -236,7 +243,45 @@ def diagnose(
     log.info("fitting the Chebyshev residual on top")
     with ThreadPoolExecutor(2) as pool:
         hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha), _distinct(base, ladder.final)))
-    discovery = None
-    if discover:
-        discovery = discover_missing_force(ladder.rankings[-1], train, validation, library=library, deadline=deadline)
-    return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation, discovery)
+    found = None if discovery is None else discovery.discover(ladder.rankings[-1], train, validation, deadline)
+    return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation, found)
+
+
+def _stages(ranker: Ranker | None, discovery: Discoverer | None, legacy: dict) -> tuple[Ranker, Discoverer | None]:
+    """The ranker and the discoverer, from the earlier signature's keywords where those are given (with a
+    ``DeprecationWarning`` naming the replacement)."""
+    unknown = sorted(set(legacy) - {"discover", "terms", *LEGACY_RANKER})
+    if unknown:
+        raise ConfigurationError(f"diagnose() got unexpected keyword(s) {unknown}; the ranking's settings go in "
+                                 "ranker=Ranker(...), the discovery's in discovery=Discoverer(...)")
+    if not legacy:
+        return ranker or Ranker(), discovery
+    warnings.warn(f"diagnose({', '.join(f'{k}=' for k in legacy)}) is deprecated: pass ranker=Ranker(...) and "
+                  "discovery=Discoverer(library=TermLibrary(terms=...))", DeprecationWarning, stacklevel=3)
+    options = {k: legacy[k] for k in LEGACY_RANKER if k in legacy}
+    if options:
+        if ranker is not None:
+            raise ConfigurationError(f"give the ranking's settings once: ranker=Ranker(...) or {sorted(options)}")
+        ranker = Ranker(**options)
+    if legacy.get("discover"):
+        if discovery is not None:
+            raise ConfigurationError("give the discovery once: discovery=Discoverer(...) or discover=True")
+        discovery = Discoverer(library=TermLibrary(terms=tuple(legacy.get("terms") or ())))
+    return ranker or Ranker(), discovery
+
+
+def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect], train: list[Experiment],
+                   validation: list[Experiment], discovery: Discoverer | None) -> None:
+    """Before any fit: the physics runs on the first record, the discovery's terms parse, and every record has more
+    samples than twice the most parameters a fit takes and a uniform grid (the residual's exact filter)."""
+    most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
+                                                 for c in candidates), default=0)
+    check_physics(physics, train[0].t, train[0].u)
+    if discovery is not None:
+        discovery.library.build(physics)  # a user term that does not parse is named before any fit
+    for record in train + validation:
+        if len(record.t) <= 2 * most:
+            raise DataError(f"experiment {record.name!r} has {len(record.t)} samples, too few to fit up to {most} "
+                            f"parameters (the physics' and a candidate's) and judge the fit; give records of more "
+                            f"than {2 * most} samples, or fix parameters")
+        record.require_uniform("diagnose (its Chebyshev-Hammerstein residual, an exactly discretised filter)")

@@ -1,7 +1,7 @@
 r"""The model ladder: physics -> physics + best effect -> ... until no candidate helps significantly.
 
-Each rung runs :func:`~torchpaml._diagnostics.rank_missing_effects` on the current model with the
-candidates not yet added (and that apply). If it recommends an effect (its criterion beats the current
+Each rung runs the ranker (:class:`~torchpaml.Ranker`, :func:`~torchpaml._diagnostics.rank_missing_effects`) on
+the current model with the candidates not yet added (and that apply). If it recommends an effect (its criterion beats the current
 model's by more than the threshold, its validation mismatch falls by at least ``min_share``, and its
 parameters are physical), the refitted model, fitted once more to the last digits, becomes the next
 rung; otherwise the ladder stops.
@@ -12,9 +12,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import torch
 
 from torchpaml._data import Experiment
-from torchpaml._diagnostics.ranking import ModelScore, Ranking, rank_missing_effects
+from torchpaml._diagnostics.ranker import Ranker
+from torchpaml._diagnostics.results import ModelScore, Ranking
+from torchpaml._diagnostics.scoring import as_records
+from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import AbstractEffect
 
 __all__ = ["Ladder", "model_ladder"]
@@ -38,31 +43,38 @@ class Ladder:
 
 
 def model_ladder(
-    physics,
+    physics: AbstractPhysics,
     candidates: Sequence[AbstractEffect],
     train: Experiment | Sequence[Experiment],
     validation: Experiment | Sequence[Experiment],
     *,
+    ranker: Ranker = Ranker(),
+    initial_state: str | InitialState = Rest(),
+    start_states: Sequence[torch.Tensor] | None = None,
+    deadline: float | None = None,
     max_steps: int | None = None,
-    **ranking_options,
 ) -> Ladder:
-    """Climb the ladder (module docstring); ``ranking_options`` go to :func:`rank_missing_effects` (``start_states``,
-    the training records' starting guesses of the initial states, to the first rung's only).
+    """Climb the ladder (module docstring), each rung ranked by ``ranker`` (:class:`~torchpaml.Ranker`) from the
+    records' initial states as ``initial_state`` says (:class:`~torchpaml.Rest`, :class:`~torchpaml.Estimate`).
 
-    ``max_steps`` bounds the number of effects added (default: as many as keep helping).
+    ``start_states``: with ``Estimate()``, the first rung's starting guesses of the training records' initial states
+    (each next rung starts from its refit's). ``deadline``: a ``time.perf_counter()`` time by which every refit
+    ends. ``max_steps`` bounds the number of effects added (default: as many as keep helping).
     """
-    first_starts = ranking_options.pop("start_states", None)  # the first rung's; each next rung starts from its refit
-    ranking = rank_missing_effects(physics, candidates, train, validation, start_states=first_starts,
-                                   **ranking_options)
+    train, validation = as_records(train), as_records(validation)
+    initial_state = as_initial_state(initial_state)
+    ranking = ranker.rank(physics, candidates, train, validation, initial_state=initial_state,
+                          start_states=start_states, deadline=deadline)
     steps, added, rankings = [ranking.baseline], [], [ranking]
     while ranking.recommended is not None and (max_steps is None or len(added) < max_steps):
         best = ranking.recommended
         added.append(best.effect)
         remaining = [e.effect for e in ranking.entries if e.effect != best.effect]
         # the next rung's baseline is the refit's model fitted to the last digits (the refit stopped early)
-        starts = best.refit.train_states if ranking_options.get("initial_state") == "estimate" else None
-        ranking = rank_missing_effects(best.refit.model, [c for c in candidates if c.name in remaining], train,
-                                       validation, start_states=starts, solver=best.refit.solver, **ranking_options)
+        ranking = ranker.rank(best.refit.model, [c for c in candidates if c.name in remaining], train, validation,
+                              initial_state=initial_state,
+                              start_states=best.refit.train_states if initial_state.estimated else None,
+                              deadline=deadline, solver=best.refit.solver)
         steps.append(ranking.baseline)
         rankings.append(ranking)
     return Ladder(steps, added, rankings)

@@ -2,6 +2,7 @@
 neural force and sparse regression of discovery."""
 
 from torchpaml._fit.first_order import reestimate_shift
+from torchpaml._fit.initial_state import Estimate, InitialState, Rest
 from torchpaml._fit.neural_force import NeuralForceFit, fit_neural_force
 from torchpaml._fit.output_error import minimize_output_error
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
@@ -13,7 +14,10 @@ from torchpaml._fit.residual_fit import (
 )
 
 __all__ = [
+    "Estimate",
+    "InitialState",
     "NeuralForceFit",
+    "Rest",
     "PhysicsEstimate",
     "estimate_initial_state",
     "ResidualEstimate",

@@ -28,27 +28,23 @@ returns the solver it resolved (``PhysicsEstimate.solver``). It writes the fitte
 
 from __future__ import annotations
 
-import contextlib
 import copy
-import math
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 import torch
 from scipy.optimize import least_squares
 
-from torchpaml._data import Experiment
-from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._budget import Budget
+from torchpaml._data import Experiment
+from torchpaml._errors import ConfigurationError, ResolutionError
+from torchpaml._fit.initial_state import Estimate, InitialState, Rest, as_initial_state
 from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solver
+from torchpaml._fit.trust_region import TrustRegionProblem
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
-from torchpaml._physics.base import complete_state
-from torchpaml._data.simulation import record_jacobian
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._simulate.lti import exact_step
-from torchpaml._simulate.sensitivity import raw_parameters
 from torchpaml._simulate.stiffness import STIFF_SUBSTEPS
 from torchpaml._simulate.solvers import TRBDF2, Auto, Exact, FixedStep, Solver, engine_solver
 from torchpaml._simulate.warm import WarmStart
@@ -109,11 +105,11 @@ def _raw_bounds(physics, names: list[str], bounds: dict[str, tuple[float, float]
 
 
 def fit_physics(
-    physics,
+    physics: AbstractPhysics,
     records: Experiment | Sequence[Experiment],
     *,
     bounds: dict[str, tuple[float, float]] | None = None,
-    initial_state: Literal["rest", "estimate"] = "rest",
+    initial_state: str | InitialState = Rest(),
     start_states: Sequence[torch.Tensor] | None = None,
     warm: Sequence[WarmStart] | None = None,
     max_nfev: int = 60,
@@ -125,12 +121,13 @@ def fit_physics(
 
     Args:
         physics: the model; its learnable parameters are fitted, the others stay fixed. With
-            ``initial_state="estimate"`` it may have none (then only the initial states are fitted).
+            ``Estimate()`` it may have none (then only the initial states are fitted).
         records: one or more :class:`~torchpaml._data.Experiment`.
         bounds: ``{name: (lower, upper)}`` in physical units.
-        initial_state: ``"rest"`` (each record starts at rest) or ``"estimate"`` (each record's initial
-            state is fitted too, an unbounded unknown per state; see ``PhysicsEstimate.initial_states``).
-        start_states: with ``initial_state="estimate"``, each record's starting guess (n_state,), or of
+        initial_state: ``Rest()`` (each record starts at rest; or ``"rest"``) or ``Estimate()`` (``"estimate"``:
+            each record's initial state is fitted too, an unbounded unknown per state; see
+            ``PhysicsEstimate.initial_states``; :mod:`~torchpaml._fit.initial_state`).
+        start_states: with ``Estimate()``, each record's starting guess (n_state,), or of
             the base's states of ``physics + effect`` (:func:`~torchpaml._physics.complete_state`) (default: rest).
         warm: one :class:`~torchpaml.WarmStart` per record that carries the RK4 engine's last solution into the
             fit's first Newton solve (``simulate(..., warm=)``, e.g. of a simulation at the start); default fresh ones.
@@ -144,129 +141,82 @@ def fit_physics(
         budget: a :class:`~torchpaml._budget.Budget`: progress lines while the fit runs, and
             :class:`~torchpaml._budget.OverBudget` raised past its limit (default: neither).
     """
-    if initial_state not in ("rest", "estimate"):
-        raise ConfigurationError(f"initial_state must be 'rest' or 'estimate', got {initial_state!r}")
-    estimate_x0 = initial_state == "estimate"
+    initial_state = as_initial_state(initial_state)
     switch = solver is None or isinstance(solver, Auto)  # may go on with the implicit method
-    solver = _starting_solver(solver)
     records = [records] if isinstance(records, Experiment) else list(records)
-    if start_states is not None and (not estimate_x0 or len(start_states) != len(records)):
-        raise ConfigurationError(f"start_states needs initial_state='estimate' and one state per record ({len(records)}), got "
-                         f"{len(start_states)} with initial_state={initial_state!r}")
-    names = physics.learnable_names()
-    if not names and not estimate_x0:
-        raise ConfigurationError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")
-    p, n_state = len(names), physics.state_dim
+    names = _checked_unknowns(physics, records, initial_state, start_states)
+    problem = TrustRegionProblem(physics, records, names, initial_state.estimated, _starting_solver(solver),
+                                 [WarmStart() for _ in records] if warm is None else list(warm), budget)
     lower, upper = _raw_bounds(physics, names, bounds or {})
-    if estimate_x0:
-        lower = np.concatenate([lower, np.full(n_state * len(records), -np.inf)])
-        upper = np.concatenate([upper, np.full(n_state * len(records), np.inf)])
-    raw = list(raw_parameters(physics, names).values())
-    targets = [r.y[None] for r in records]
-    scale = float(torch.sqrt(sum(torch.sum(y**2) for y in targets)))
-    count = {"simulations": 0, "cost": math.inf}  # the lowest cost so far
-    memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-    warm = [WarmStart() for _ in records] if warm is None else list(warm)  # each record's last solution starts the next solve
+    if initial_state.estimated:
+        lower = np.concatenate([lower, np.full(physics.state_dim * len(records), -np.inf)])
+        upper = np.concatenate([upper, np.full(physics.state_dim * len(records), np.inf)])
+    x = problem.start(start_states, lower, upper)
+    problem.evaluate(x)  # raises SimulationError, naming the blow-up, at a bad start
+    step_check = _StepCheck(problem, switch)
+    result = None
+    while (resolved := step_check.solver(x, result is not None)) != problem.solver or result is None:
+        problem.use(resolved)  # at the start, then at each optimum
+        result = least_squares(problem.residual, x, jac=lambda x: problem.evaluate(x)[1], bounds=(lower, upper),
+                               method="trf", x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
+        x = result.x
+    return _estimate(problem, result.x)
 
-    def starts(x: np.ndarray) -> list[torch.Tensor | None]:
-        if not estimate_x0:
-            return [None] * len(records)
-        return [torch.from_numpy(x[p + i * n_state: p + (i + 1) * n_state].copy())[None] for i in range(len(records))]
 
-    def evaluate(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Residual (samples,) and Jacobian (samples, unknowns) at ``x``, once per point."""
-        key = x.tobytes()
-        if key not in memo:
-            count["simulations"] += 1
-            began = time.perf_counter()
-            try:
-                with budget.active() if budget is not None else contextlib.nullcontext():
-                    value = computed(x)
-                memo.clear()
-                memo[key] = value
-                count["cost"] = min(count["cost"], 0.5 * float(np.sum(memo[key][0] ** 2)))
-            finally:  # a blow-up's time counts too
-                if budget is not None:
-                    budget.check(count["cost"], time.perf_counter() - began)
-        return memo[key]
+def _checked_unknowns(physics: AbstractPhysics, records: list[Experiment], initial_state: InitialState,
+                      start_states: Sequence[torch.Tensor] | None) -> list[str]:
+    """The learnable parameters' names, after checking that the fit has unknowns and ``start_states`` fits."""
+    if start_states is not None and (not initial_state.estimated or len(start_states) != len(records)):
+        raise ConfigurationError(f"start_states needs initial_state=Estimate() and one state per record "
+                                 f"({len(records)}), got {len(start_states)} with {initial_state!r}")
+    names = physics.learnable_names()
+    if not names and not initial_state.estimated:
+        raise ConfigurationError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")
+    return names
 
-    def computed(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Residual and Jacobian at ``x``, computed."""
-        with torch.no_grad():
-            for tensor, value in zip(raw, x, strict=False):
-                tensor.copy_(torch.tensor(value, dtype=torch.float64))
-        parts = [record_jacobian(physics, names, r, x0, warm=w, initial_state=estimate_x0, solver=solver)
-                 for r, w, x0 in zip(records, warm, starts(x), strict=True)]
-        residual = torch.cat([(y - y_hat).flatten() for y, (y_hat, _) in zip(targets, parts, strict=True)]) / scale
-        columns = []
-        for i, (_, J) in enumerate(parts):  # each record's x0 columns go to its own block
-            J = J.reshape(-1, J.shape[-1])
-            block = torch.zeros(len(J), len(x) - p, dtype=torch.float64)
-            if estimate_x0:
-                block[:, i * n_state:(i + 1) * n_state] = J[:, p:]
-            columns.append(torch.cat([J[:, :p], block], dim=1))
-        jacobian = -torch.cat(columns) / scale
-        return residual.numpy(), jacobian.numpy()
 
-    def fun(x: np.ndarray) -> np.ndarray:
-        try:
-            return evaluate(x)[0]
-        except SimulationError:
-            return np.full(sum(y.numel() for y in targets), np.inf)
+class _StepCheck:
+    """The solver the step check (:mod:`torchpaml._fit.resolution`) resolves at a point of ``problem``: the whole
+    check at an optimum, only the step's stability at the start (a start's step error only delays the fit, whose
+    optimum is checked). With the default solver (``switch``), physics that RK4 cannot resolve goes on with
+    TR-BDF2."""
 
-    guesses = [None] * len(records) if start_states is None else start_states
-    guesses = [complete_state(physics, None if x is None else x.detach().reshape(1, -1), 1)[0].numpy()
-               for x in guesses] if estimate_x0 else []
-    start = np.clip(np.concatenate([torch.stack([v.detach() for v in raw]).numpy() if raw else np.zeros(0), *guesses]),
-                    lower, upper)
-    evaluate(start)  # raises SimulationError, naming the blow-up, at a bad start
+    def __init__(self, problem: TrustRegionProblem, switch: bool):
+        self.problem, self.switch = problem, switch
+        self.most_stable = STIFF_SUBSTEPS if switch else MAX_SUBSTEPS  # beyond, the default goes on with TR-BDF2
 
-    def solve(x: np.ndarray):
-        return least_squares(fun, x, jac=lambda x: evaluate(x)[1], bounds=(lower, upper), method="trf",
-                             x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
-
-    most_stable = STIFF_SUBSTEPS if switch else MAX_SUBSTEPS  # beyond, the default solver goes on with TR-BDF2
-
-    def outputs(residual: np.ndarray) -> list[torch.Tensor]:
-        """Each record's output (time, n_output) from the residual $r = (y - \\hat y)/\\|y\\|$."""
-        parts = (torch.from_numpy(residual) * scale).split([y.numel() for y in targets])
-        return [y[0] - part.reshape(y.shape[1:]) for y, part in zip(targets, parts, strict=True)]
-
-    def resolution(x: np.ndarray, optimum: bool) -> FixedStep:
-        """The step check's solver at ``x`` (the model set to ``x`` first): the whole check at an optimum, only the
-        step's stability at the start (a start's step error only delays the fit, whose optimum is checked)."""
-        residual = evaluate(x)[0]
+    def solver(self, x: np.ndarray, optimum: bool) -> FixedStep:
+        problem, current = self.problem, self.problem.solver
+        residual = problem.evaluate(x)[0]  # also sets the model to x
         try:
             if not optimum:
-                return stable_solver(physics, solver, records, starts(x), most_stable)
-            return resolved_solver(physics, solver, records, starts(x), float(np.linalg.norm(residual)), most_stable,
-                                   outputs(residual))
+                return stable_solver(problem.physics, current, problem.records, problem.starts(x), self.most_stable)
+            return resolved_solver(problem.physics, current, problem.records, problem.starts(x),
+                                   float(np.linalg.norm(residual)), self.most_stable, problem.outputs(residual))
         except ResolutionError:
-            if not switch or isinstance(solver, TRBDF2):
+            if not self.switch or isinstance(current, TRBDF2):
                 raise
-            return TRBDF2(substeps=1, segment=solver.segment)  # stiff (or unresolved) for RK4: the implicit method
+            return TRBDF2(substeps=1, segment=current.segment)  # stiff (or unresolved) for RK4: the implicit method
 
-    x, result = start, None
-    while (resolved := resolution(x, result is not None)) != solver or result is None:  # at the start, then each optimum
-        if resolved != solver:
-            solver = resolved
-            memo.clear()
-        result = solve(x)
-        x = result.x
+
+def _estimate(problem: TrustRegionProblem, x: np.ndarray) -> PhysicsEstimate:
+    """The :class:`PhysicsEstimate` at the optimum ``x`` (the model set there), its uncertainty included."""
+    physics, names, records = problem.physics, problem.names, problem.records
     linear = all(exact_step(physics, r.t) is not None for r in records)
-    residual, jacobian = evaluate(result.x)
+    residual, jacobian = problem.evaluate(x)
     values = physics.physical_parameters()
     residual, jacobian = torch.from_numpy(residual.copy()), torch.from_numpy(jacobian.copy())
-    initial_states = [x0[0] if x0 is not None else physics.initial_state(1)[0] for x0 in starts(result.x)]
-    state_names = [f"x0[{r.name}].{s}" for r in records for s in physics.state_names] if estimate_x0 else []
+    initial_states = [x0[0] if x0 is not None else physics.initial_state(1)[0] for x0 in problem.starts(x)]
+    state_names = [f"x0[{r.name}].{s}" for r in records for s in physics.state_names] if problem.estimated else []
     slopes = torch.cat([constraint_slopes(physics, names), torch.ones(len(state_names), dtype=torch.float64)])
-    x0_values = torch.cat(initial_states).tolist() if estimate_x0 else []
+    x0_values = torch.cat(initial_states).tolist() if problem.estimated else []
     estimates = torch.tensor([values[n] for n in names] + x0_values, dtype=torch.float64)
     uncertainty = parameter_uncertainty(names + state_names, estimates, residual, jacobian / slopes,
                                         at_limit=[n for n, slope in zip(names, slopes, strict=False) if slope == 0])
     warn_if_unidentifiable(uncertainty, physics.display_name)
     return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,
-                           jacobian, count["simulations"], uncertainty, initial_states, Exact() if linear else solver)
+                           jacobian, problem.simulations, uncertainty, initial_states,
+                           Exact() if linear else problem.solver)
 
 
 def _starting_solver(solver: Solver | None) -> FixedStep:
@@ -279,15 +229,15 @@ def _starting_solver(solver: Solver | None) -> FixedStep:
     return solver.at(1) if solver.substeps == "auto" else solver
 
 
-def estimate_initial_state(physics, record: Experiment, samples: int | None = None,
+def estimate_initial_state(physics: AbstractPhysics, record: Experiment, samples: int | None = None,
                            solver: Solver | None = None) -> torch.Tensor:
     """The initial state (n_state,) that best explains the first ``samples`` of ``record`` (all if ``None``).
 
     The parameters stay as they are: a frozen copy of ``physics`` goes through :func:`fit_physics`
-    with ``initial_state="estimate"``. Benchmarks that allow a few samples for initialisation (the
+    with ``Estimate()``. Benchmarks that allow a few samples for initialisation (the
     Silverbox's first 50) score a model from this state.
     """
     frozen = copy.deepcopy(physics)
     frozen.set_learnable(*frozen.learnable_names(), learn=False)
     window = record if samples is None else record.window(0, samples)
-    return fit_physics(frozen, window, initial_state="estimate", solver=solver).initial_states[0]
+    return fit_physics(frozen, window, initial_state=Estimate(), solver=solver).initial_states[0]

@@ -23,7 +23,7 @@ import yaml
 from torch.utils.tensorboard import SummaryWriter
 
 from torchpaml._diagnostics.diagnosis import Diagnosis
-from torchpaml._diagnostics.ranking import ModelScore
+from torchpaml._diagnostics.results import ModelScore
 from torchpaml._render.figures import diagnosis_figures
 from torchpaml._render.schema import diagnosis_to_dict
 

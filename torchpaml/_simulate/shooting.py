@@ -47,6 +47,7 @@ central difference to $O(\delta^2)$ as well.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import torch
 from torch.nn.utils import parametrize
@@ -57,6 +58,9 @@ from torchpaml._grid import check_hold
 from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.scan import linear_recurrence
 from torchpaml._simulate.warm import WarmStart
+
+if TYPE_CHECKING:  # the solvers build on this engine: imported for annotations only
+    from torchpaml._simulate.solvers import FixedStep
 
 __all__ = ["ShootingSolution", "base_guess", "simulate_shooting", "solve_shooting"]
 #: Relative size of the start perturbations of the central differences (the sweep that feeds gradients).

@@ -145,10 +145,14 @@ def diagnose_command(
         raise ConfigurationError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
     check_options(shortlist, min_share, refit_budget, budget)
     model, chosen = resolve_models(physics, fix, effects, candidates, discover)
-    diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold, shortlist=shortlist,
-                                   rule=SelectionRule(criterion, threshold, min_share),
-                                   initial_state=initial_state, discover=discover, terms=terms or (),
-                                   refit_budget=refit_budget, budget=budget)
+    from torchpaml._diagnostics.discoverer import Discoverer
+    from torchpaml._diagnostics.ranker import Ranker
+    from torchpaml._physics.terms import TermLibrary
+
+    ranker = Ranker(rule=SelectionRule(criterion, threshold, min_share), shortlist=shortlist, refit_budget=refit_budget)
+    discovery = Discoverer(library=TermLibrary(terms=tuple(terms or ()))) if discover else None
+    diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold, ranker=ranker,
+                                   initial_state=initial_state, discovery=discovery, budget=budget)
     path = Path(out) / "diagnosis.json"
     print(ranking_table(diagnosis.ranking))
     print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")

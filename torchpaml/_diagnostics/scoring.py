@@ -1,0 +1,53 @@
+"""A fitted model scored on the validation records: its mismatch, and the selection rule's criterion."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import torch
+
+from torchpaml._data import Experiment
+from torchpaml._data.simulation import simulate_record
+from torchpaml._diagnostics.results import ModelScore
+from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._fit.initial_state import InitialState, Rest
+from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state
+from torchpaml._physics.base import AbstractPhysics
+from torchpaml._simulate.solvers import continued
+
+__all__ = ["as_records", "score_model"]
+
+
+def as_records(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]:
+    return [experiments] if isinstance(experiments, Experiment) else list(experiments)
+
+
+def score_model(
+    physics: AbstractPhysics,
+    fit: PhysicsEstimate,
+    validation: Sequence[Experiment],
+    rule: SelectionRule | None = None,
+    initial_state: InitialState = Rest(),
+) -> ModelScore:
+    """The fitted ``physics``' mismatch on training (from ``fit``) and validation, and ``rule``'s criterion on
+    validation.
+
+    With ``Estimate()`` each validation record starts from the state that best explains
+    it (:func:`~torchpaml._fit.estimate_initial_state`, the parameters fixed), as MATLAB's ``compare`` does.
+    """
+    sse, n, norm = 0.0, 0, 0.0
+    starts = [estimate_initial_state(physics, r, solver=continued(fit.solver)) if initial_state.estimated else None
+              for r in validation]
+    outputs = []
+    for record, x0 in zip(validation, starts, strict=True):
+        y_model = simulate_record(physics, record, x0, solver=fit.solver)[0]
+        outputs.append(y_model)
+        sse += float(torch.sum((record.y - y_model) ** 2))
+        norm += float(torch.sum(record.y**2))
+        n += record.y.numel()
+    value = (rule or SelectionRule()).value(sse, n, len(fit.parameters))
+    equation = physics.equation() if hasattr(physics, "equation") else physics.display_name
+    return ModelScore(physics.display_name, equation, physics.physical_parameters(), fit.mismatch,
+                      (sse / norm) ** 0.5, value, physics, dict(fit.uncertainty.std), fit.uncertainty.warning,
+                      fit.initial_states, [physics.initial_state(1)[0] if x0 is None else x0 for x0 in starts],
+                      outputs, fit.solver, dict(fit.uncertainty.interval))
