@@ -9,7 +9,7 @@ import time
 
 import torch
 
-from torchpaml import Experiment, fit_physics, Oscillator, sine, time_grid
+from torchpaml import Record, fit_physics, Oscillator, sine, time_grid
 from torchpaml._paper import PaperSetup, _measure, reproduce
 
 
@@ -20,7 +20,7 @@ def main() -> None:
     u = sine(t, 4.0, setup.omega)
     y = _measure(setup, t, u)
     start = time.perf_counter()
-    fit_physics(Oscillator(zeta=1.0), Experiment.records(t, u, y), bounds={"zeta": setup.zeta_bounds})
+    fit_physics(Oscillator(zeta=1.0), Record.records(t, u, y), bounds={"zeta": setup.zeta_bounds})
     one_fit = time.perf_counter() - start
     start = time.perf_counter()
     reproduce([4.0, 10.0], seeds=10)

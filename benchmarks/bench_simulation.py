@@ -27,7 +27,7 @@ import time
 
 import torch
 
-from torchpaml import (RK4, TRBDF2, CubicStiffness, Dopri5, Exact, Experiment, InputLag, Oscillator, fit_physics,
+from torchpaml import (RK4, TRBDF2, CubicStiffness, Dopri5, Exact, Record, InputLag, Oscillator, fit_physics,
                        multisine, simulate)
 
 
@@ -118,7 +118,7 @@ def main() -> None:
     with torch.no_grad():
         y = simulate(duffing, t, u)
     y = y + 0.02 * y.std() * torch.randn(y.shape, generator=torch.Generator().manual_seed(0))
-    record = Experiment(t, u[0], y[0], "duffing")
+    record = Record(t, u[0], y[0], "duffing")
     model = Oscillator(zeta=0.4, omega0=1.8, gain=3.0, learn=("zeta", "omega0", "gain")) + CubicStiffness(1.0)
     start = time.perf_counter()
     fit = fit_physics(model, record)

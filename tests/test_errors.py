@@ -13,7 +13,7 @@ from torchpaml import (
     ChebyshevHammerstein,
     DataError,
     DomainError,
-    Experiment,
+    Record,
     Oscillator,
     PhysicalParameter,
     Real,
@@ -33,21 +33,21 @@ def _write(tmp_path, text):
 
 def test_missing_column(tmp_path):
     with pytest.raises(DataError, match=r"missing column\(s\) \['y'\].*expected it to contain 't,u,y'"):
-        Experiment.from_csv(_write(tmp_path, "t,u\n0,1\n1,2\n"))
+        Record.from_csv(_write(tmp_path, "t,u\n0,1\n1,2\n"))
 
 
 def test_nan_value(tmp_path):
     with pytest.raises(DataError, match="column 'y' has 1 NaN/inf value.*row 1.*drop or interpolate"):
-        Experiment.from_csv(_write(tmp_path, "t,u,y\n0,1,1\n1,2,nan\n2,3,3\n"))
+        Record.from_csv(_write(tmp_path, "t,u,y\n0,1,1\n1,2,nan\n2,3,3\n"))
 
 
 def test_time_not_strictly_increasing(tmp_path):
     with pytest.raises(DataError, match=r"strictly increasing.*t\[2\].*remove duplicate"):
-        Experiment.from_csv(_write(tmp_path, "t,u,y\n0,1,1\n1,2,2\n1,3,3\n"))
+        Record.from_csv(_write(tmp_path, "t,u,y\n0,1,1\n1,2,2\n1,3,3\n"))
 
 
 def test_non_uniform_sampling_where_uniform_is_required(tmp_path):
-    experiment = Experiment.from_csv(_write(tmp_path, "t,u,y\n0,1,1\n1,2,2\n3,3,3\n"))
+    experiment = Record.from_csv(_write(tmp_path, "t,u,y\n0,1,1\n1,2,2\n3,3,3\n"))
     with pytest.raises(DataError, match="uniform sampling is required.*resample"):
         experiment.dt
     with pytest.raises(DataError, match="uniform sampling is required"):
@@ -56,14 +56,14 @@ def test_non_uniform_sampling_where_uniform_is_required(tmp_path):
 
 def test_length_mismatch():
     with pytest.raises(DataError, match="length mismatch, t has 3 samples, u 3, y 2"):
-        Experiment(torch.arange(3.0), torch.zeros(3), torch.zeros(2))
+        Record(torch.arange(3.0), torch.zeros(3), torch.zeros(2))
 
 
 def test_empty_file(tmp_path):
     with pytest.raises(DataError, match="is empty"):
-        Experiment.from_csv(_write(tmp_path, ""))
+        Record.from_csv(_write(tmp_path, ""))
     with pytest.raises(DataError, match="no data rows"):
-        Experiment.from_csv(_write(tmp_path, "t,u,y\n"))
+        Record.from_csv(_write(tmp_path, "t,u,y\n"))
 
 
 def test_input_beyond_the_chebyshev_domain_raises():

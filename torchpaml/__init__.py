@@ -11,7 +11,7 @@ Everything a user calls is exported here; the modules behind it are private. The
 import importlib
 
 from torchpaml._certificates import Certificate, incompatibility_certificates
-from torchpaml._data import Experiment, ExperimentSource, Files, Simulated, simulate_record
+from torchpaml._data import Experiment, ExperimentSource, Files, Record, RecordSource, Simulated, simulate_record
 from torchpaml._diagnostics import (
     SelectionRule,
     Adequacy,
@@ -163,8 +163,8 @@ __all__ = [
     "Real",
     "register_parameters",
     # records and signals
-    "Experiment",
-    "ExperimentSource",
+    "Record",
+    "RecordSource",
     "Files",
     "Simulated",
     "chirp",
@@ -263,7 +263,7 @@ __all__ = [
     "PhysicsFit",
     "ResidualFit",
     "JointFit",
-    "ExperimentDataModule",
+    "RecordDataModule",
     # errors
     "ConfigurationError",
     "DataError",
@@ -275,7 +275,7 @@ __all__ = [
 ]
 
 #: Names whose module imports Lightning: loaded on first access, so that ``import torchpaml`` stays light.
-_LIGHTNING = ("ExperimentDataModule", "HybridSystem", "JointFit", "PhysicsFit", "ResidualFit")
+_LIGHTNING = ("RecordDataModule", "ExperimentDataModule", "HybridSystem", "JointFit", "PhysicsFit", "ResidualFit")
 
 
 def __getattr__(name: str):

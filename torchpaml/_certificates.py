@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._errors import ConfigurationError
 from torchpaml._residual import ChebyshevHammerstein, MLPResidual
 from torchpaml._signals import cosine, time_grid
@@ -72,7 +73,8 @@ def _normalised(a: torch.Tensor, b: torch.Tensor) -> float:
     return float((a * b).sum() / (torch.linalg.vector_norm(a) * torch.linalg.vector_norm(b)))
 
 
-def _sensitivity(physics, parameter: str, theta: float, step: float, t, u, y, solver: Solver | None) -> torch.Tensor:
+def _sensitivity(physics: AbstractPhysics, parameter: str, theta: float, step: float, t, u, y,
+                 solver: Solver | None) -> torch.Tensor:
     r"""$\partial_\theta \mathcal H^\theta[u]$ by central differences; one-sided where θ ± step leaves the constraint."""
     points = []
     for shift in (step, -step):
@@ -86,7 +88,7 @@ def _sensitivity(physics, parameter: str, theta: float, step: float, t, u, y, so
 
 
 def incompatibility_certificates(
-    physics,
+    physics: AbstractPhysics,
     draw: Callable[[torch.Generator], nn.Module],
     *,
     alpha: float,

@@ -27,8 +27,9 @@ from dataclasses import asdict, dataclass
 
 import torch
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._certificates import draw_chebyshev, draw_mlp, incompatibility_certificates
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._fit import fit_chebyshev_hammerstein, fit_physics, reestimate_shift
 from torchpaml._metrics import mismatch
 from torchpaml._physics import Oscillator, Pendulum
@@ -92,7 +93,7 @@ def reproduce_alpha(alpha: float, seeds: list[int], setup: PaperSetup = PaperSet
     y_sine, y_random = y_all[:1], y_all[1:]
 
     physics = Oscillator(zeta=setup.zeta_start, omega0=setup.omega0, learn=("zeta",))
-    stage1 = fit_physics(physics, Experiment.records(t, u_sine, y_sine), bounds={"zeta": setup.zeta_bounds})
+    stage1 = fit_physics(physics, Record.records(t, u_sine, y_sine), bounds={"zeta": setup.zeta_bounds})
     with torch.no_grad():
         y_hat = physics(t, u_random)
 
@@ -137,7 +138,8 @@ def reproduce_alpha(alpha: float, seeds: list[int], setup: PaperSetup = PaperSet
     }
 
 
-def certify(physics, alpha: float, setup: PaperSetup, durations=(20.0, 40.0, 80.0, 160.0), draws: int = 10) -> dict:
+def certify(physics: AbstractPhysics, alpha: float, setup: PaperSetup, durations=(20.0, 40.0, 80.0, 160.0),
+            draws: int = 10) -> dict:
     """Worst |c0|, |c1| over random residual draws on $\\alpha\\cos(\\omega t)$, for growing record lengths."""
     draws_by_name = {
         "chebyshev": lambda g: draw_chebyshev(alpha, g, n=setup.n, order=setup.order),

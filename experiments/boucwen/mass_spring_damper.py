@@ -13,7 +13,7 @@ import math
 import numpy as np
 import torch
 
-from torchpaml import Experiment, PhysicalParameter, Positive, SecondOrderPhysics, register_parameters
+from torchpaml import Record, PhysicalParameter, Positive, SecondOrderPhysics, register_parameters
 
 __all__ = ["MassSpringDamper", "frequency_response_start"]
 
@@ -39,7 +39,7 @@ class MassSpringDamper(SecondOrderPhysics):
         return A, B, torch.tensor([[1.0, 0.0]], dtype=torch.float64), torch.zeros(1, 1, dtype=torch.float64)
 
 
-def frequency_response_start(record: Experiment) -> MassSpringDamper:
+def frequency_response_start(record: Record) -> MassSpringDamper:
     r"""A :class:`MassSpringDamper` started from the record's empirical transfer function $|H| = |Y/U|$ over the
     excited bins: $k = 1/|H(0)|$ (the lowest excited decade's median gain), $\omega_0$ at the peak of $|H|$,
     $m = k/\omega_0^2$, and $c = 1/(\omega_0 |H(\omega_0)|)$ from the resonance's height.

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import torch
 
-from torchpaml import Estimate, Ranker, Solver, default_effects, diagnose, diagnosis_to_dict, Experiment, simulate_record, write_report
+from torchpaml import Estimate, Ranker, Solver, default_effects, diagnose, diagnosis_to_dict, Record, simulate_record, write_report
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from mass_spring_damper import frequency_response_start  # noqa: E402  (the user's physics, beside this script)
@@ -47,16 +47,16 @@ TRAIN = "train_multisine_forgione"
 TESTS = ("test_multisine", "test_sinesweep")
 
 
-def steady_state_error(model, record: Experiment, solver: Solver | None = None) -> torch.Tensor:
+def steady_state_error(model, record: Record, solver: Solver | None = None) -> torch.Tensor:
     """The error (time,) of a fitted model on one period of a periodic record, in the steady state: the period's input
     applied twice from rest, the second period compared; ``solver``: the one its fit resolved."""
     n = len(record.t)
-    twice = Experiment(torch.cat([record.t, record.t + n * record.dt]), torch.cat([record.u, record.u]),
+    twice = Record(torch.cat([record.t, record.t + n * record.dt]), torch.cat([record.u, record.u]),
                        torch.cat([record.y, record.y]), name=record.name)
     return (record.y - simulate_record(model, twice, solver=solver)[0][n:])[:, 0]
 
 
-def test_rmse(model, tests: dict[str, Experiment], solver: Solver | None = None) -> dict[str, float]:
+def test_rmse(model, tests: dict[str, Record], solver: Solver | None = None) -> dict[str, float]:
     """RMSE in m of a fitted model on each test record: the multisine in its periodic steady state, the sweep from
     rest; ``solver``: the one its fit resolved (``PhysicsEstimate.solver``)."""
     sweep = tests["test_sinesweep"]
@@ -74,8 +74,8 @@ def main(argv: list[str] | None = None) -> dict:
     if not (args.data / f"{TRAIN}.csv").is_file():
         parser.error(f"{args.data} has no {TRAIN}.csv; point --data at shared/data/boucwen")
     start = time.perf_counter()
-    train = Experiment.from_csv(args.data / f"{TRAIN}.csv", name="train")
-    tests = {name: Experiment.from_csv(args.data / f"{name}.csv", name=name) for name in TESTS}
+    train = Record.from_csv(args.data / f"{TRAIN}.csv", name="train")
+    tests = {name: Record.from_csv(args.data / f"{name}.csv", name=name) for name in TESTS}
     diagnosis = diagnose(frequency_response_start(train), default_effects(), train, tests["test_multisine"],
                          ranker=Ranker(shortlist=args.shortlist), initial_state=Estimate())
     write_report(diagnosis, args.out / "diagnosis")

@@ -24,7 +24,7 @@ from pathlib import Path
 from run import HOLD
 from tanks import SensorClip, TorricelliOutflow, TwoTanks
 
-from torchpaml import Experiment, fit_physics, simulate_record
+from torchpaml import Record, fit_physics, simulate_record
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "cascaded_tanks"
 
@@ -36,7 +36,7 @@ def benchmark_model():
             + SensorClip(1.0, learn=()))
 
 
-def rmse(model, record: Experiment, x0, solver) -> float:
+def rmse(model, record: Record, x0, solver) -> float:
     return float((record.y - simulate_record(model, record, x0, solver=solver)[0]).square().mean().sqrt())
 
 
@@ -46,8 +46,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     if not (args.data / "estimation.csv").is_file():
         parser.error(f"{args.data} has no estimation.csv; point --data at shared/data/cascaded_tanks")
-    estimation = Experiment.from_csv(args.data / "estimation.csv", "estimation", hold=HOLD)
-    test = Experiment.from_csv(args.data / "test.csv", "test", hold=HOLD)
+    estimation = Record.from_csv(args.data / "estimation.csv", "estimation", hold=HOLD)
+    test = Record.from_csv(args.data / "test.csv", "test", hold=HOLD)
     model = benchmark_model()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # k2, k4 and the upper level's scale trade: the warning is expected

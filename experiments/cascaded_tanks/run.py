@@ -39,7 +39,7 @@ from torchpaml import (
     diagnose,
     discovery_to_dict,
     diagnosis_to_dict,
-    Experiment,
+    Record,
     OutputSaturation,
     ranking_table,
     simulate_record,
@@ -71,8 +71,8 @@ def main(argv: list[str] | None = None) -> dict:
     if not (args.data / "estimation.csv").is_file():
         parser.error(f"{args.data} has no estimation.csv; point --data at shared/data/cascaded_tanks")
     start = time.perf_counter()
-    estimation = Experiment.from_csv(args.data / "estimation.csv", "estimation", hold=HOLD)
-    test = Experiment.from_csv(args.data / "test.csv", "test", hold=HOLD)
+    estimation = Record.from_csv(args.data / "estimation.csv", "estimation", hold=HOLD)
+    test = Record.from_csv(args.data / "test.csv", "test", hold=HOLD)
     cut = int(round((1 - VALIDATION_SHARE) * len(estimation.t)))
     train, validation = estimation.window(0, cut, "train"), estimation.window(cut, None, "validation")
     physics = TwoTanks(k1=0.01, k2=0.01, k3=0.01, k4=0.02, learn=("k1", "k3", "k4"))  # 100 s; 2 V/V

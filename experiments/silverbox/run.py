@@ -48,7 +48,7 @@ from torchpaml import (
     diagnosis_to_dict,
     discovery_to_dict,
     estimate_initial_state,
-    Experiment,
+    Record,
     Solver,
     Oscillator,
     simulate_record,
@@ -61,7 +61,7 @@ VALIDATION_SHARE = 0.2
 INIT_SAMPLES = 50
 
 
-def frequency_response_start(record: Experiment) -> Oscillator:
+def frequency_response_start(record: Record) -> Oscillator:
     r"""An :class:`Oscillator` started from the record's empirical transfer function $|H| = |Y/U|$.
 
     Only the excited bins count (above 0 Hz, $|U|$ above 10 % of its maximum there): $\omega_0$ at the peak of $|H|$,
@@ -81,13 +81,13 @@ def frequency_response_start(record: Experiment) -> Oscillator:
     return Oscillator(zeta=zeta, omega0=omega0, gain=static * omega0**2, learn=("zeta", "omega0", "gain"))
 
 
-def split(record: Experiment) -> tuple[Experiment, Experiment]:
+def split(record: Record) -> tuple[Record, Record]:
     """The first 1 - VALIDATION_SHARE of ``record`` for training, the rest for validation."""
     cut = int(round((1 - VALIDATION_SHARE) * len(record.t)))
     return record.window(0, cut, "train"), record.window(cut, None, "validation")
 
 
-def test_scores(model, tests: dict[str, Experiment], solver: Solver | None = None
+def test_scores(model, tests: dict[str, Record], solver: Solver | None = None
                 ) -> tuple[dict[str, float], dict[str, float]]:
     """RMSE in mV and NRMSE (RMSE / std y) of a fitted model on each test record, after the first INIT_SAMPLES;
     ``solver``: the one its fit resolved (``PhysicsEstimate.solver``)."""
@@ -110,8 +110,8 @@ def main(argv: list[str] | None = None) -> dict:
     if not (args.data / "train_multisine.csv").is_file():
         parser.error(f"{args.data} has no train_multisine.csv; point --data at shared/data/silverbox")
     start = time.perf_counter()
-    train, validation = split(Experiment.from_csv(args.data / "train_multisine.csv"))
-    tests = {name: Experiment.from_csv(args.data / f"{name}.csv") for name in TESTS}
+    train, validation = split(Record.from_csv(args.data / "train_multisine.csv"))
+    tests = {name: Record.from_csv(args.data / f"{name}.csv") for name in TESTS}
     diagnosis = diagnose(frequency_response_start(train), default_effects(), train, validation,
                          ranker=Ranker(shortlist=args.shortlist))
     write_report(diagnosis, args.out / "diagnosis")

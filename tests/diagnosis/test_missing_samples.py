@@ -8,7 +8,7 @@ from torchpaml import (
     DataError,
     default_effects,
     diagnose,
-    Experiment,
+    Record,
     Oscillator,
     rank_missing_effects,
     Simulated,
@@ -25,7 +25,7 @@ def gappy():
     for signal, seed in (("pseudorandom", 0), ("multisine", 1)):
         record = Simulated(true, signal, 1.0, [seed], 45.0, 0.05, noise=0.02).experiments()[0]
         keep = torch.arange(len(record.t)) % 3 != 2
-        made.append(Experiment(record.t[keep], record.u[keep], record.y[keep], f"{signal}-gaps"))
+        made.append(Record(record.t[keep], record.u[keep], record.y[keep], f"{signal}-gaps"))
     return made
 
 

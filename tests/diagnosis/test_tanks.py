@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from experiment_modules import load
-from torchpaml import diagnose, Experiment, mismatch, pseudorandom, time_grid
+from torchpaml import diagnose, Record, mismatch, pseudorandom, time_grid
 
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 
@@ -20,14 +20,14 @@ tanks = load("cascaded_tanks/tanks.py")
 X0 = torch.tensor([[6.0, 4.0]], dtype=torch.float64)
 
 
-def record(system, seed: int, noise: float) -> tuple[Experiment, float]:
+def record(system, seed: int, noise: float) -> tuple[Record, float]:
     t = time_grid(1200.0, 4.0)
     u = 3.0 + pseudorandom(t, 1.5, period=40.0, seed=seed)
     with torch.no_grad():
         y = system(t, u, X0)[0]
     generator = torch.Generator().manual_seed(100 + seed)
     noisy = y + noise * y.std() * torch.randn(y.shape, generator=generator, dtype=torch.float64)
-    return Experiment(t, u[0], noisy, f"seed {seed}"), mismatch(noisy, y)
+    return Record(t, u[0], noisy, f"seed {seed}"), mismatch(noisy, y)
 
 
 def test_the_hidden_sqrt_outflow_is_found_and_brings_the_error_to_the_noise_floor():

@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from torchpaml import build_model, Experiment, simulate
+from torchpaml import build_model, Record, simulate
 from torchpaml._signals import pseudorandom_knots
 
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
@@ -20,7 +20,7 @@ def test_simulated_measurements_are_the_model_plus_the_requested_noise(tmp_path)
     done = run("--physics", "oscillator", "--set", "zeta=0.3", "--effect", "cubic_stiffness=2", "--duration", "20",
                "--noise", "0.02", "--seed", "4", "--out", "m.csv", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
-    record = Experiment.from_csv(tmp_path / "m.csv")
+    record = Record.from_csv(tmp_path / "m.csv")
     assert record.metadata["parameters"]["cubic_stiffness.k3"] == 2.0
     model = build_model("oscillator", {"zeta": 0.3}, {"cubic_stiffness": 2.0})
     t, u, y = record.batch()

@@ -14,7 +14,7 @@ import pytest
 import torch
 
 from torchpaml import RK4
-from torchpaml import DynamicFriction, Hysteresis, InputLag, Oscillator, fit_physics, Experiment, simulate
+from torchpaml import DynamicFriction, Hysteresis, InputLag, Oscillator, fit_physics, Record, simulate
 from torchpaml._signals import multisine
 
 from oracles import oracle
@@ -88,6 +88,6 @@ def test_the_step_check_resolves_a_fast_effect_state():
     with torch.no_grad():
         assert relative_error(simulate(truth, t, u, solver=RK4(substeps=1)), y) > 1e-5
     physics = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + InputLag(tau=0.05)
-    estimate = fit_physics(physics, Experiment(t, u[0], y[0]))
+    estimate = fit_physics(physics, Record(t, u[0], y[0]))
     assert estimate.solver.substeps > 1
     assert float(physics.physical_parameters()["input_lag.tau"]) == pytest.approx(0.025, rel=1e-3)

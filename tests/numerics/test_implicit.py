@@ -105,7 +105,7 @@ def test_gradients_of_a_stiff_simulation_match_central_differences():
 def noisy_record(truth, t, u):
     y = oracle(truth, t, u, method="Radau")
     noise = 0.01 * float(y.std()) * torch.randn(y.shape, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
-    return tp.Experiment(t, u[0], (y + noise)[0])
+    return tp.Record(t, u[0], (y + noise)[0])
 
 
 @pytest.mark.slow

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from experiment_modules import load
-from torchpaml import Experiment, diagnose, discovery_to_dict, fit_physics, simulate_record
+from torchpaml import Record, diagnose, discovery_to_dict, fit_physics, simulate_record
 
 silverbox = load("silverbox/run.py")
 cascaded = load("cascaded_tanks/run.py")
@@ -21,12 +21,12 @@ pytestmark = pytest.mark.skipif(not (silverbox.DATA / "train_multisine.csv").is_
 
 
 def test_silverbox_linear_oscillator_on_the_official_split():
-    train, validation = silverbox.split(Experiment.from_csv(silverbox.DATA / "train_multisine.csv"))
+    train, validation = silverbox.split(Record.from_csv(silverbox.DATA / "train_multisine.csv"))
     assert len(train.t) + len(validation.t) == 65062  # the official training record, validation inside it
     physics = silverbox.frequency_response_start(train)
     assert 2 * 3.1416 * 60 < physics.physical_parameters()["omega0"] < 2 * 3.1416 * 80  # resonance near 69 Hz
     fit = fit_physics(physics, train)
-    test = Experiment.from_csv(silverbox.DATA / "test_multisine.csv")
+    test = Record.from_csv(silverbox.DATA / "test_multisine.csv")
     rmse, nrmse = silverbox.test_scores(physics, {"test_multisine": test}, fit.solver)
     # measured 8.81 mV; the issue's linear reference is 8.8 mV
     assert 8.0 < rmse["test_multisine"] < 9.5
@@ -35,8 +35,8 @@ def test_silverbox_linear_oscillator_on_the_official_split():
 
 def test_cascaded_tanks_linear_physics_from_the_estimated_shared_initial_state():
     tanks = load("cascaded_tanks/tanks.py")
-    estimation = Experiment.from_csv(cascaded.DATA / "estimation.csv", hold=cascaded.HOLD)
-    test = Experiment.from_csv(cascaded.DATA / "test.csv", hold=cascaded.HOLD)
+    estimation = Record.from_csv(cascaded.DATA / "estimation.csv", hold=cascaded.HOLD)
+    test = Record.from_csv(cascaded.DATA / "test.csv", hold=cascaded.HOLD)
     physics = tanks.TwoTanks(0.01, 0.01, 0.01, 0.02, learn=("k1", "k3", "k4"))
     fit = fit_physics(physics, estimation, initial_state="estimate")
     x0 = fit.initial_states[0]
@@ -49,13 +49,13 @@ def test_cascaded_tanks_linear_physics_from_the_estimated_shared_initial_state()
 def test_silverbox_discovery_writes_the_cubic_spring_in_closed_form():
     """Discovery alone on the linear physics (``run.py --discover``'s step) holds x**3 and reaches 1.0 mV on
     test_multisine."""
-    train, validation = silverbox.split(Experiment.from_csv(silverbox.DATA / "train_multisine.csv"))
+    train, validation = silverbox.split(Record.from_csv(silverbox.DATA / "train_multisine.csv"))
     found = diagnose(silverbox.frequency_response_start(train), [], train, validation, discover=True).discovery
     content = discovery_to_dict(found)
     terms = {t["term"]: t for t in content["terms"]}
     assert "x**3" in terms and terms["x**3"]["coefficient"] < 0, content["expression"]  # a hardening spring
     assert all(0 < t["std"] < abs(t["coefficient"]) for t in content["terms"]), content["terms"]
-    test = Experiment.from_csv(silverbox.DATA / "test_multisine.csv")
+    test = Record.from_csv(silverbox.DATA / "test_multisine.csv")
     rmse, _ = silverbox.test_scores(found.discovered.model, {"test_multisine": test}, found.discovered.solver)
     assert rmse["test_multisine"] <= 1.0, rmse  # measured 0.91 mV; the linear physics 8.81 mV
 
@@ -64,8 +64,8 @@ def tanks_discovery(threads: int) -> tuple[dict, float]:
     """Discovery alone on the linear tanks (``run.py --discover``'s step) on ``threads`` threads: discovery.json's
     content and the test RMSE."""
     tanks = load("cascaded_tanks/tanks.py")
-    estimation = Experiment.from_csv(cascaded.DATA / "estimation.csv", hold=cascaded.HOLD)
-    test = Experiment.from_csv(cascaded.DATA / "test.csv", hold=cascaded.HOLD)
+    estimation = Record.from_csv(cascaded.DATA / "estimation.csv", hold=cascaded.HOLD)
+    test = Record.from_csv(cascaded.DATA / "test.csv", hold=cascaded.HOLD)
     cut = int(round((1 - cascaded.VALIDATION_SHARE) * len(estimation.t)))
     train, validation = estimation.window(0, cut, "train"), estimation.window(cut, None, "validation")
     physics = tanks.TwoTanks(0.01, 0.01, 0.01, 0.02, learn=("k1", "k3", "k4"))

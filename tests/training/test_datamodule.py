@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from torchpaml import DataError, Experiment, ExperimentDataModule, Files, Oscillator, Simulated
+from torchpaml import DataError, Record, RecordDataModule, Files, Oscillator, Simulated
 
 
 def truth():
@@ -20,7 +20,7 @@ def test_simulated_source_is_seeded_and_adds_the_requested_noise():
 
 
 def test_windows_skip_the_washout_and_tile_the_record():
-    data = ExperimentDataModule(Simulated(truth(), "sine", duration=10.0), window=2.0, washout=1.0)
+    data = RecordDataModule(Simulated(truth(), "sine", duration=10.0), window=2.0, washout=1.0)
     items = data.items("train")
     assert len(items) == 4  # windows start at 1, 3, 5, 7 s; each simulated from 1 s earlier
     assert all(item["washout"] == 100 and len(item["t"]) == 300 for item in items)
@@ -32,19 +32,19 @@ def test_windows_skip_the_washout_and_tile_the_record():
 
 
 def test_a_window_longer_than_the_record_is_an_error():
-    data = ExperimentDataModule(Simulated(truth(), "sine", duration=5.0), window=4.0, washout=2.0)
+    data = RecordDataModule(Simulated(truth(), "sine", duration=5.0), window=4.0, washout=2.0)
     with pytest.raises(DataError, match="shorter than window \\+ washout"):
         data.items("train")
 
 
 def test_records_on_different_grids_cannot_share_a_batch(tmp_path):
     t = torch.arange(100, dtype=torch.float64) * 0.01
-    Experiment(t, torch.sin(t), torch.cos(t), "a").to_csv(tmp_path / "a.csv")
-    Experiment(t[:50], torch.sin(t[:50]), torch.cos(t[:50]), "b").to_csv(tmp_path / "b.csv")
-    data = ExperimentDataModule(Files([str(tmp_path / "a.csv"), str(tmp_path / "b.csv")]))
+    Record(t, torch.sin(t), torch.cos(t), "a").to_csv(tmp_path / "a.csv")
+    Record(t[:50], torch.sin(t[:50]), torch.cos(t[:50]), "b").to_csv(tmp_path / "b.csv")
+    data = RecordDataModule(Files([str(tmp_path / "a.csv"), str(tmp_path / "b.csv")]))
     with pytest.raises(DataError, match="different time grids.*batch_size: 1"):
         next(iter(data.train_dataloader()))
-    assert len(list(ExperimentDataModule(Files([str(tmp_path / "a.csv"), str(tmp_path / "b.csv")]),
+    assert len(list(RecordDataModule(Files([str(tmp_path / "a.csv"), str(tmp_path / "b.csv")]),
                                          batch_size=1).train_dataloader())) == 2
 
 
@@ -54,11 +54,11 @@ def test_file_sources_name_the_problem():
     with pytest.raises(DataError, match="at least one path"):
         Files([])
     with pytest.raises(DataError, match="test split is empty"):
-        ExperimentDataModule(Simulated(truth(), duration=5.0)).test_dataloader()
+        RecordDataModule(Simulated(truth(), duration=5.0)).test_dataloader()
 
 
 def test_a_zero_order_hold_record_is_refused_by_the_lightning_systems_data(tmp_path):
     t = torch.arange(20, dtype=torch.float64) * 0.1
-    path = Experiment(t, torch.sin(t), torch.cos(t), "held", {"hold": "zoh"}).to_csv(tmp_path / "held.csv")
+    path = Record(t, torch.sin(t), torch.cos(t), "held", {"hold": "zoh"}).to_csv(tmp_path / "held.csv")
     with pytest.raises(DataError, match="hold their input constant between samples"):
-        ExperimentDataModule(Files([str(path)])).records("train")
+        RecordDataModule(Files([str(path)])).records("train")

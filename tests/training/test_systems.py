@@ -6,8 +6,8 @@ import torch
 
 from torchpaml import (
     ChebyshevHammerstein,
-    Experiment,
-    ExperimentDataModule,
+    Record,
+    RecordDataModule,
     fit_chebyshev_hammerstein,
     fit_physics,
     JointFit,
@@ -31,7 +31,7 @@ def train(system, data, epochs):
 
 @pytest.fixture(scope="module")
 def paper_data():
-    return ExperimentDataModule(
+    return RecordDataModule(
         train=Simulated(signal="pseudorandom", seeds=[0], **PENDULUM),
         validation=Simulated(signal="pseudorandom", seeds=[1], **PENDULUM),
         identification=Simulated(signal="sine", **PENDULUM),
@@ -41,11 +41,11 @@ def paper_data():
 @pytest.fixture(scope="module")
 def zeta_hat(paper_data):
     t, u, y = paper_data.records("identification")[0].batch()
-    return fit_physics(Oscillator(zeta=1.0), Experiment.records(t, u, y), bounds={"zeta": (1e-3, 5.0)}).parameters["zeta"]
+    return fit_physics(Oscillator(zeta=1.0), Record.records(t, u, y), bounds={"zeta": (1e-3, 5.0)}).parameters["zeta"]
 
 
 def test_lightning_physics_fit_matches_fit_physics(paper_data, zeta_hat):
-    data = ExperimentDataModule(train=paper_data.sources["identification"])
+    data = RecordDataModule(train=paper_data.sources["identification"])
     system = train(PhysicsFit(Oscillator(zeta=1.0), bounds={"zeta": (1e-3, 5.0)}), data, epochs=3)
     assert system.physics.zeta.item() == pytest.approx(zeta_hat, rel=1e-6)
 
@@ -70,7 +70,7 @@ def test_residual_fit_matches_the_library_two_stage_fit(paper_data, zeta_hat):
 @pytest.mark.parametrize("factor", [0.5, 2.0])
 def test_joint_fit_with_the_chebyshev_residual_returns_to_the_physics_estimate(paper_data, zeta_hat, factor):
     sine = paper_data.sources["identification"]
-    data = ExperimentDataModule(train=sine)
+    data = RecordDataModule(train=sine)
     residual = ChebyshevHammerstein(4.0)
     system = train(JointFit(Oscillator(zeta=factor * zeta_hat), residual, bounds={"zeta": (1e-3, 5.0)}), data, 4)
     assert system.physics.zeta.item() == pytest.approx(zeta_hat, rel=0.01)  # the 1 %

@@ -39,7 +39,7 @@ def test_the_default_candidates_that_apply_to_first_order_physics():
 
 
 def test_first_order_physics_with_the_default_candidates_runs_and_lists_the_skipped_ones():
-    from torchpaml import Experiment
+    from torchpaml import Record
     from torchpaml._diagnostics import rank_missing_effects
 
     truth = tanks.TwoTanks(0.02, 0.01, 0.01, 0.05) + OutputSaturation(0.1)
@@ -48,7 +48,7 @@ def test_first_order_physics_with_the_default_candidates_runs_and_lists_the_skip
     for seed in (0, 1):
         u = 3.0 + pseudorandom(t, 1.5, period=40.0, seed=seed)
         with torch.no_grad():
-            records.append(Experiment(t, u[0], truth(t, u)[0]))
+            records.append(Record(t, u[0], truth(t, u)[0]))
     physics = tanks.TwoTanks(0.02, 0.01, 0.01, 0.05, learn=("k1", "k3", "k4"))
     ranking = rank_missing_effects(physics, default_effects(), records[0], records[1], shortlist=1)
     assert set(ranking.skipped) == {"cubic_stiffness", "quadratic_stiffness", "pendulum_restoring",

@@ -10,7 +10,7 @@ import torch
 from torchpaml import (
     Budget,
     CubicStiffness,
-    Experiment,
+    Record,
     Oscillator,
     OverBudget,
     RK4,
@@ -35,7 +35,7 @@ def duffing():
         u = pseudorandom(t, 1.0, seed=seed)
         y = simulate(true, t, u, solver=RK4(substeps=4))[0].detach()
         noise = 0.01 * y.pow(2).mean().sqrt() * torch.randn(y.shape, generator=torch.Generator().manual_seed(seed))
-        made.append(Experiment(t, u[0], y + noise, f"seed{seed}"))
+        made.append(Record(t, u[0], y + noise, f"seed{seed}"))
     return made
 
 
@@ -86,7 +86,7 @@ def test_a_long_fit_prints_its_progress(duffing, caplog, monkeypatch):
 def test_the_gate_refits_what_could_pass_the_rule_at_its_margin():
     rule = SelectionRule()  # needs a 5 % fall of the validation mismatch: 9.75 % of the residual's energy
     model, base = Oscillator() + CubicStiffness(), Oscillator()
-    records = [Experiment(time_grid(10.0, 0.05), torch.zeros(200, 1), torch.ones(200, 1), "r")]
+    records = [Record(time_grid(10.0, 0.05), torch.zeros(200, 1), torch.ones(200, 1), "r")]
     needed = 1 - (1 - rule.min_share) ** 2
     assert cannot_pass(1.01 * needed / GATE_MARGIN, rule, records, model, base) is None
     why = cannot_pass(0.99 * needed / GATE_MARGIN, rule, records, model, base)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from torchpaml import compare, comparison_figure, comparison_table, Experiment, Oscillator, pseudorandom, time_grid
+from torchpaml import compare, comparison_figure, comparison_table, Record, Oscillator, pseudorandom, time_grid
 
 
 @pytest.fixture
@@ -10,7 +10,7 @@ def record():
     t = time_grid(20.0, 0.01)
     u = pseudorandom(t, 1.0, seed=5)
     y = Oscillator(zeta=0.3)(t, u).detach()
-    return Experiment(t, u[0], y[0], "prbs")
+    return Record(t, u[0], y[0], "prbs")
 
 
 def test_the_true_model_scores_perfectly_and_a_wrong_one_does_not(record):

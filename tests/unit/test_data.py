@@ -1,19 +1,19 @@
-"""Experiment I/O round trips."""
+"""Record I/O round trips."""
 
 import pytest
 import torch
 
-from torchpaml import Experiment
+from torchpaml import Record
 
 
 def _experiment():
     t = torch.arange(50, dtype=torch.float64) * 0.1
-    return Experiment(t, torch.sin(t), torch.cos(t), name="demo", metadata={"alpha": 4.0, "seed": 1})
+    return Record(t, torch.sin(t), torch.cos(t), name="demo", metadata={"alpha": 4.0, "seed": 1})
 
 
 def test_csv_round_trip_is_exact(tmp_path):
     original = _experiment()
-    loaded = Experiment.from_csv(original.to_csv(tmp_path / "demo.csv"))
+    loaded = Record.from_csv(original.to_csv(tmp_path / "demo.csv"))
     assert torch.equal(loaded.t, original.t) and torch.equal(loaded.u, original.u) and torch.equal(loaded.y, original.y)
     assert loaded.metadata == original.metadata and loaded.name == "demo"
     assert (tmp_path / "demo.csv").read_text().splitlines()[1] == "t,u,y"
@@ -21,7 +21,7 @@ def test_csv_round_trip_is_exact(tmp_path):
 
 def test_npz_round_trip_is_exact(tmp_path):
     original = _experiment()
-    loaded = Experiment.from_npz(original.to_npz(tmp_path / "demo.npz"))
+    loaded = Record.from_npz(original.to_npz(tmp_path / "demo.npz"))
     assert torch.equal(loaded.y, original.y) and loaded.metadata == original.metadata
 
 
@@ -34,14 +34,14 @@ def test_batch_shapes_and_dt():
 def test_hold_is_checked_read_from_metadata_and_kept_by_windows(tmp_path):
     t = torch.arange(10, dtype=torch.float64) * 0.1
     with pytest.raises(ValueError, match="hold must be 'foh'"):
-        Experiment(t, t, t, hold="linear")
-    path = Experiment(t, t, t, "held", {"hold": "zoh"}).to_csv(tmp_path / "held.csv")
-    record = Experiment.from_csv(path)
+        Record(t, t, t, hold="linear")
+    path = Record(t, t, t, "held", {"hold": "zoh"}).to_csv(tmp_path / "held.csv")
+    record = Record.from_csv(path)
     assert record.hold == "zoh"
-    for written in (Experiment(t, t, t, hold="zoh").to_csv(tmp_path / "a.csv"),
-                    Experiment(t, t, t, hold="zoh").to_npz(tmp_path / "a.npz")):  # a file keeps the hold
-        reader = Experiment.from_csv if written.suffix == ".csv" else Experiment.from_npz
+    for written in (Record(t, t, t, hold="zoh").to_csv(tmp_path / "a.csv"),
+                    Record(t, t, t, hold="zoh").to_npz(tmp_path / "a.npz")):  # a file keeps the hold
+        reader = Record.from_csv if written.suffix == ".csv" else Record.from_npz
         assert reader(written).hold == "zoh"
-    assert Experiment.from_csv(path, hold="foh").hold == "foh"  # the argument wins over the metadata
+    assert Record.from_csv(path, hold="foh").hold == "foh"  # the argument wins over the metadata
     part = record.window(2, 6, "part")
     assert (part.hold, part.name, len(part.t)) == ("zoh", "part", 4)

@@ -11,7 +11,7 @@ from torchpaml import (
     CubicStiffness,
     DeadZone,
     DynamicFriction,
-    Experiment,
+    Record,
     default_effects,
     EFFECTS,
     EffectState,
@@ -177,7 +177,7 @@ def test_an_effect_with_states_but_no_dynamics_is_refused_by_name():
 
 def test_the_memory_effects_are_bounded_at_what_the_sampling_resolves_unless_given():
     t = torch.linspace(0.0, 1.0, 11)
-    record = Experiment(t, torch.zeros(11, 1), (t**2)[:, None], "r")  # the largest change over a sample: 0.19
+    record = Record(t, torch.zeros(11, 1), (t**2)[:, None], "r")  # the largest change over a sample: 0.19
     assert DynamicFriction().bounds([record]) == {"zc": (pytest.approx(0.095), float("inf"))}
     zc, = (value for name, value in DynamicFriction().starts([record])[0].items() if name == "zc")
     assert zc > 0.095  # the start lies inside the bound

@@ -10,7 +10,7 @@ from torchpaml import RK4
 from torchpaml import (
     ChebyshevHammerstein,
     cosine,
-    Experiment,
+    Record,
     fit_chebyshev_hammerstein,
     fit_physics,
     fit_residual,
@@ -31,7 +31,7 @@ from torchpaml._fit.residual_fit import RIDGE, project
 def test_bounded_fit_recovers_zeta(grid):
     u = sine(grid, 1.0, 1.0)
     y = Oscillator(zeta=0.37)(grid, u).detach()
-    fit = fit_physics(Oscillator(zeta=1.0), Experiment.records(grid, u, y), bounds={"zeta": (1e-3, 5.0)})
+    fit = fit_physics(Oscillator(zeta=1.0), Record.records(grid, u, y), bounds={"zeta": (1e-3, 5.0)})
     assert fit.parameters["zeta"] == pytest.approx(0.37, abs=1e-6)
     assert fit.mismatch < 1e-6
 
@@ -39,7 +39,7 @@ def test_bounded_fit_recovers_zeta(grid):
 def test_an_optimum_beyond_a_bound_stops_exactly_on_it(grid):
     u = sine(grid, 1.0, 1.0)
     y = Oscillator(zeta=0.37)(grid, u).detach()
-    fit = fit_physics(Oscillator(zeta=1.0), Experiment.records(grid, u, y), bounds={"zeta": (0.5, 5.0)})
+    fit = fit_physics(Oscillator(zeta=1.0), Record.records(grid, u, y), bounds={"zeta": (0.5, 5.0)})
     assert fit.parameters["zeta"] == pytest.approx(0.5, abs=1e-8)  # trf keeps iterates strictly inside
 
 
@@ -51,7 +51,7 @@ def test_nonlinear_fit_recovers_the_generating_parameters(grid):
     # the device: the continuous system, here RK4 at 16 steps per sample (its error ~1e-9)
     y = simulate(Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(1.5), t, u, solver=RK4(substeps=16)).detach()
     model = Oscillator(zeta=0.5, omega0=1.5, gain=3.0, learn=("zeta", "omega0", "gain")) + CubicStiffness()
-    fit = fit_physics(model, Experiment.records(t, u, y))
+    fit = fit_physics(model, Record.records(t, u, y))
     for name, truth in {"zeta": 0.2, "omega0": 2.0, "gain": 4.0, "cubic_stiffness.k3": 1.5}.items():
         assert fit.parameters[name] == pytest.approx(truth, rel=1e-6)
 
@@ -64,7 +64,7 @@ def test_jacobian_matches_central_differences_of_the_residual(grid):
     u = pseudorandom(t, 1.0, seed=1)
     y = simulate(Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(1.5), t, u).detach()
     model = Oscillator(zeta=0.3, omega0=2.0, gain=4.0) + CubicStiffness(1.0)
-    fit = fit_physics(model, Experiment.records(t, u, y), max_nfev=1)
+    fit = fit_physics(model, Record.records(t, u, y), max_nfev=1)
     raw = raw_parameters(model, ["zeta"])["base.parametrizations.zeta.original"]
     with torch.no_grad():
         raw += 1e-6
@@ -80,13 +80,13 @@ def test_fit_recovers_several_linear_parameters(grid):
     u = pseudorandom(grid, 1.0, seed=2)
     y = Oscillator(zeta=0.3, omega0=2.5, gain=1.7)(grid, u).detach()
     physics = Oscillator(zeta=0.6, omega0=2.0, gain=1.0, learn=("zeta", "omega0", "gain"))
-    fit = fit_physics(physics, Experiment.records(grid, u, y))
+    fit = fit_physics(physics, Record.records(grid, u, y))
     for name, truth in {"zeta": 0.3, "omega0": 2.5, "gain": 1.7}.items():
         assert fit.parameters[name] == pytest.approx(truth, rel=1e-5)
 
 
 def test_bad_bounds_and_nothing_to_fit_are_refused(grid):
-    records = Experiment.records(grid, sine(grid, 1.0, 1.0), sine(grid, 1.0, 1.0))
+    records = Record.records(grid, sine(grid, 1.0, 1.0), sine(grid, 1.0, 1.0))
     with pytest.raises(ValueError, match="not learnable"):
         fit_physics(Oscillator(learn=("zeta",)), records, bounds={"gain": (0.1, 1.0)})
     with pytest.raises(ValueError, match="starts outside its bounds"):
@@ -167,7 +167,7 @@ def test_first_order_shift_vanishes_for_an_orthogonal_residual():
     residual = draw_chebyshev(2.0, torch.Generator().manual_seed(0))
     y = (Oscillator(zeta=0.4)(t, u) + residual(t, u)).detach()
     physics = Oscillator(zeta=1.0)
-    fit_physics(physics, Experiment.records(t, u, y), bounds={"zeta": (1e-3, 5.0)})
+    fit_physics(physics, Record.records(t, u, y), bounds={"zeta": (1e-3, 5.0)})
     assert physics.physical_parameters()["zeta"] == pytest.approx(0.4, abs=2e-3)
     shift = reestimate_shift(physics, residual, t, u, y, bounds={"zeta": (1e-3, 5.0)})
     assert abs(shift["zeta"]) < 2e-3
@@ -199,9 +199,9 @@ def test_a_record_held_zero_order_is_fitted_as_held(grid):
          Oscillator(zeta=0.5, omega0=2.2, gain=1.5, learn=("zeta", "omega0", "gain")) + CubicStiffness()),
     ]:
         y = simulate(truth, t, u, hold="zoh", solver=RK4(substeps=16)).detach()  # RK4 resolved (nonlinear)
-        held = Experiment(t, u[0], y[0], "held", hold="zoh")
+        held = Record(t, u[0], y[0], "held", hold="zoh")
         fit = fit_physics(copy.deepcopy(start), held)
         for name in ("zeta", "omega0", "gain"):
             assert fit.parameters[name] == pytest.approx(truth.physical_parameters()[name], rel=1e-6)
-        misread = fit_physics(copy.deepcopy(start), Experiment(t, u[0], y[0], "misread"))
+        misread = fit_physics(copy.deepcopy(start), Record(t, u[0], y[0], "misread"))
         assert abs(misread.parameters["omega0"] / 2.5 - 1) > 1e-3

@@ -4,7 +4,7 @@ import copy
 
 import torch
 
-from torchpaml import CubicStiffness, Experiment, Oscillator, fit_physics, pseudorandom, simulate, time_grid
+from torchpaml import CubicStiffness, Record, Oscillator, fit_physics, pseudorandom, simulate, time_grid
 
 
 def _attributes(module: torch.nn.Module) -> dict[str, dict[str, int]]:
@@ -13,11 +13,11 @@ def _attributes(module: torch.nn.Module) -> dict[str, dict[str, int]]:
             for name, sub in module.named_modules()}
 
 
-def _record() -> Experiment:
+def _record() -> Record:
     t = time_grid(20.0, 0.05)
     u = pseudorandom(t, 1.0, seed=3)
     y = simulate(Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(1.5), t, u).detach()
-    return Experiment.records(t, u, y)[0]
+    return Record.records(t, u, y)[0]
 
 
 def test_calling_the_model_means_the_same_before_and_after_a_fit_of_a_copy():

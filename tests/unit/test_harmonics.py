@@ -40,7 +40,7 @@ def test_the_window_must_resolve_the_harmonics():
 def test_the_papers_linearised_pendulum_leaves_odd_harmonics():
     import torch
 
-    from torchpaml import Experiment, Oscillator, fit_physics
+    from torchpaml import Record, Oscillator, fit_physics
     from torchpaml._paper import PaperSetup, _measure
     from torchpaml._signals import sine, time_grid
 
@@ -48,7 +48,7 @@ def test_the_papers_linearised_pendulum_leaves_odd_harmonics():
     u = sine(t, 4.0, 1.0)
     y = _measure(PaperSetup(), t, u)
     physics = Oscillator(zeta=1.0)
-    fit_physics(physics, Experiment.records(t, u, y), bounds={"zeta": (1e-3, 5.0)})
+    fit_physics(physics, Record.records(t, u, y), bounds={"zeta": (1e-3, 5.0)})
     with torch.no_grad():
         result = harmonic_fingerprint(t, u, y - physics(t, u), fundamental=1.0, transient=20.0)
     # sin x is odd: the missing physics sits on 3ω, 5ω, ... (measured 0.73; the rest is on ω itself)

@@ -3,17 +3,17 @@
 import pytest
 import torch
 
-from torchpaml import CubicStiffness, Experiment, fit_physics, Oscillator, pseudorandom, time_grid
+from torchpaml import CubicStiffness, Record, fit_physics, Oscillator, pseudorandom, time_grid
 
 X0 = torch.tensor([[0.8, -1.5]], dtype=torch.float64)
 
 
-def _record(model, seed=0) -> Experiment:
+def _record(model, seed=0) -> Record:
     t = time_grid(10.0, 0.02)
     u = pseudorandom(t, 1.0, seed=seed)
     with torch.no_grad():
         y = model(t, u, X0)
-    return Experiment(t, u[0], y[0])
+    return Record(t, u[0], y[0])
 
 
 @pytest.mark.parametrize("nonlinear", [False, True], ids=["exact path", "rk4 engine"])
@@ -26,7 +26,7 @@ def test_the_initial_state_is_estimated_with_the_parameters(nonlinear):
     assert fit.initial_states[0] == pytest.approx(X0[0], abs=1e-6)
     assert fit.parameters["zeta"] == pytest.approx(0.2, abs=1e-6)
     assert fit.mismatch < 1e-7
-    assert set(fit.uncertainty.std) >= {"x0[experiment].position", "x0[experiment].velocity"}
+    assert set(fit.uncertainty.std) >= {"x0[record].position", "x0[record].velocity"}
 
 
 def test_from_rest_the_same_record_leaves_a_transient_error():

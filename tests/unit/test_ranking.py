@@ -8,7 +8,7 @@ from torchpaml import (
     AbstractEffect,
     CubicStiffness,
     DeadZone,
-    Experiment,
+    Record,
     fit_physics,
     InputSaturation,
     Oscillator,
@@ -37,7 +37,7 @@ def duffing():
     made = []
     for seed in (0, 1):
         u = pseudorandom(t, 1.0, seed=seed)
-        made.append(Experiment(t, u[0], simulate(true, t, u, solver=RK4())[0].detach(), f"seed{seed}"))
+        made.append(Record(t, u[0], simulate(true, t, u, solver=RK4())[0].detach(), f"seed{seed}"))
     return made
 
 

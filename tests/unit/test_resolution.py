@@ -14,7 +14,7 @@ from torchpaml import RK4, Auto, Exact
 from torchpaml import (
     ConstantForce,
     CubicStiffness,
-    Experiment,
+    Record,
     fit_physics,
     Oscillator,
     pseudorandom,
@@ -30,14 +30,14 @@ from torchpaml._simulate.solvers import continued, engine_solver
 TRUTH = {"zeta": 0.05, "omega0": 2.0, "gain": 4.0, "cubic_stiffness.k3": 0.5}
 
 
-def record(h: float, noise: float = 0.005) -> Experiment:
+def record(h: float, noise: float = 0.005) -> Record:
     t = time_grid(200.0, h)
     u = pseudorandom(t, 1.0, period=4.0, seed=0)
     device = Oscillator(zeta=0.05, omega0=2.0, gain=4.0) + CubicStiffness(0.5)
     with torch.no_grad():
         y = simulate(device, t, u, solver=RK4(substeps=32))[0]
     y = y + noise * y.std() * torch.randn(y.shape, generator=torch.Generator().manual_seed(7), dtype=torch.float64)
-    return Experiment(t, u[0], y, f"h = {h:g} s")
+    return Record(t, u[0], y, f"h = {h:g} s")
 
 
 def start() -> Oscillator:

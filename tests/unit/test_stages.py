@@ -54,11 +54,11 @@ def test_the_earlier_keywords_still_work_with_a_warning_naming_the_stage_that_re
 def test_a_policy_object_and_its_name_fit_alike(grid):
     import torch
 
-    from torchpaml import Experiment, Oscillator, pseudorandom, simulate
+    from torchpaml import Record, Oscillator, pseudorandom, simulate
 
     u = pseudorandom(grid, 1.0, seed=2)
     y = simulate(Oscillator(zeta=0.3, omega0=2.0), grid, u, torch.tensor([[0.4, -0.2]])).detach()
-    record = Experiment(grid, u[0], y[0])
+    record = Record(grid, u[0], y[0])
     by_name = fit_physics(Oscillator(zeta=0.5, omega0=2.0), record, initial_state="estimate")
     by_policy = fit_physics(Oscillator(zeta=0.5, omega0=2.0), record, initial_state=Estimate())
     assert by_name.parameters == by_policy.parameters

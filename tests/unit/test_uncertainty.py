@@ -5,7 +5,7 @@ import torch
 
 from torchpaml import (
     AbstractPhysics,
-    Experiment,
+    Record,
     fit_physics,
     IdentifiabilityWarning,
     Oscillator,
@@ -19,13 +19,13 @@ from torchpaml import (
 TRUTH = {"zeta": 0.2, "omega0": 2.0, "gain": 4.0}
 
 
-def _noisy_record(seed: int) -> Experiment:
+def _noisy_record(seed: int) -> Record:
     t = time_grid(15.0, 0.05)
     u = pseudorandom(t, 1.0, seed=seed)
     generator = torch.Generator().manual_seed(1000 + seed)
     with torch.no_grad():
         y = Oscillator(**TRUTH)(t, u)
-    return Experiment(t, u[0], y[0] + 0.05 * torch.randn(y[0].shape, generator=generator), name=f"seed {seed}")
+    return Record(t, u[0], y[0] + 0.05 * torch.randn(y[0].shape, generator=generator), name=f"seed {seed}")
 
 
 def test_95_percent_intervals_cover_the_truth_at_their_nominal_rate():
@@ -80,7 +80,7 @@ class ProductGain(AbstractPhysics):
 def test_a_combination_the_record_cannot_determine_is_named():
     record = _noisy_record(0)
     with pytest.warns(IdentifiabilityWarning, match=r"a [+-]1 % with b [+-]1 %.*richly"):
-        fit = fit_physics(ProductGain(), Experiment(record.t, record.u, record.y), max_nfev=5)
+        fit = fit_physics(ProductGain(), Record(record.t, record.u, record.y), max_nfev=5)
     assert fit.uncertainty.collinearity > 1e3
 
 

@@ -2,8 +2,8 @@
 sees tensors only.
 
 Everything above the data layer (fits, the ranking, discovery) simulates records through these, so
-that a record's input is held as it says (``Experiment.hold``: linear between samples, or held) in every
-simulation, and nobody passes ``hold=`` by hand. Time starts at 0 (:attr:`Experiment.elapsed`); ``x0`` is a state
+that a record's input is held as it says (``Record.hold``: linear between samples, or held) in every
+simulation, and nobody passes ``hold=`` by hand. Time starts at 0 (:attr:`Record.elapsed`); ``x0`` is a state
 (n_state,) or (1, n_state), rest when omitted; ``solver`` is how the model was fitted (``PhysicsEstimate.solver``).
 """
 
@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import torch
 
-from torchpaml._data.experiment import Experiment
+from torchpaml._data.record import Record
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._simulate.response import forced_response
 from torchpaml._simulate.sensitivity import output_jacobian
@@ -29,14 +29,14 @@ def _start(x0: torch.Tensor | None) -> torch.Tensor | None:
     return None if x0 is None else x0.reshape(1, -1)
 
 
-def record_output(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor | None = None,
+def record_output(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None = None,
                   **options) -> torch.Tensor:
     """The model's output on ``record``, (1, time, n_output), differentiable when grad mode is on; ``options``
     (``solver``, ``warm``) go to :func:`~torchpaml.simulate`."""
     return simulate(physics, record.elapsed, record.u[None], _start(x0), hold=record.hold, **options)
 
 
-def simulate_record(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor | None = None,
+def simulate_record(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None = None,
                     **options) -> torch.Tensor:
     """The model's output on one record from ``x0`` (n_state,) or rest, (1, time, n_output), without gradients;
     the input held as the record's ``hold`` says."""
@@ -44,7 +44,7 @@ def simulate_record(physics: AbstractPhysics, record: Experiment, x0: torch.Tens
         return record_output(physics, record, x0, **options)
 
 
-def record_states(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor | None = None,
+def record_states(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None = None,
                   solver: Solver | None = None) -> torch.Tensor:
     """The states on ``record`` by the shooting engine with the fixed-step solver of ``solver``
     (:func:`~torchpaml._simulate.solvers.engine_solver`), (time, n_state), without gradients."""
@@ -54,7 +54,7 @@ def record_states(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor
                                  hold=record.hold)[0]
 
 
-def record_jacobian(physics: AbstractPhysics, names: Sequence[str], record: Experiment,
+def record_jacobian(physics: AbstractPhysics, names: Sequence[str], record: Record,
                     x0: torch.Tensor | None = None, warm: WarmStart | None = None, initial_state: bool = False,
                     solver: Solver | None = None) -> tuple[torch.Tensor, torch.Tensor]:
     """:func:`~torchpaml._simulate.sensitivity.output_jacobian` on ``record``: the output and its Jacobian in
@@ -63,7 +63,7 @@ def record_jacobian(physics: AbstractPhysics, names: Sequence[str], record: Expe
                            initial_state=initial_state, hold=record.hold, solver=solver)
 
 
-def record_response(physics: AbstractPhysics, record: Experiment, x0: torch.Tensor, rates: torch.Tensor,
+def record_response(physics: AbstractPhysics, record: Record, x0: torch.Tensor, rates: torch.Tensor,
                     solver: Solver | None = None) -> torch.Tensor:
     """:func:`~torchpaml._simulate.response.forced_response` on ``record``: what each of ``rates`` (k, time,
     n_state) does to the output to first order, (k, time, n_output)."""

@@ -1,7 +1,7 @@
 r"""Where a split's experiments come from: measured files, or a simulated "true system" driven by a signal.
 
 Every source is a small typed object that YAML can spell out (``class_path``/``init_args``) and whose
-:meth:`ExperimentSource.experiments` returns a list of :class:`~torchpaml._data.Experiment`.
+:meth:`RecordSource.experiments` returns a list of :class:`~torchpaml._data.Record`.
 """
 
 from __future__ import annotations
@@ -11,23 +11,23 @@ from typing import Literal
 
 import torch
 
-from torchpaml._data.experiment import Experiment
+from torchpaml._data.record import Record
 from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._signals import cosine, multisine, pseudorandom, sine, time_grid
 from torchpaml._simulate import Auto, simulate
 
-__all__ = ["ExperimentSource", "Files", "Simulated"]
+__all__ = ["RecordSource", "Files", "Simulated"]
 
 
-class ExperimentSource:
+class RecordSource:
     """Abstract: a named set of experiments."""
 
-    def experiments(self) -> list[Experiment]:
+    def experiments(self) -> list[Record]:
         raise NotImplementedError(f"{type(self).__name__} must implement experiments()")
 
 
-class Files(ExperimentSource):
+class Files(RecordSource):
     """Measured records: CSV files (header ``t,u,y``) or NPZ files (arrays ``t``, ``u``, ``y``).
 
     Args:
@@ -39,8 +39,8 @@ class Files(ExperimentSource):
             raise DataError("Files needs at least one path; list the CSV or NPZ records of this split")
         self.paths = [Path(p) for p in paths]
 
-    def experiments(self) -> list[Experiment]:
-        readers = {".csv": Experiment.from_csv, ".npz": Experiment.from_npz}
+    def experiments(self) -> list[Record]:
+        readers = {".csv": Record.from_csv, ".npz": Record.from_npz}
         records = []
         for path in self.paths:
             if path.suffix not in readers:
@@ -54,7 +54,7 @@ class Files(ExperimentSource):
 MEASUREMENT_RTOL = 1e-5
 
 
-class Simulated(ExperimentSource):
+class Simulated(RecordSource):
     r"""Synthetic measurements: ``system`` (the "true" physics) driven by a seeded signal, plus output noise.
 
     Args:
@@ -111,7 +111,7 @@ class Simulated(ExperimentSource):
                 rows.append(multisine(t, self.amplitude, self.frequencies, seed=seed))
         return torch.cat(rows)
 
-    def experiments(self) -> list[Experiment]:
+    def experiments(self) -> list[Record]:
         t = time_grid(self.duration, self.dt)
         u = self.inputs(t)
         with torch.no_grad():
@@ -123,5 +123,5 @@ class Simulated(ExperimentSource):
             noisy = y[i] + scale * torch.randn(y[i].shape, generator=generator, dtype=torch.float64)
             name = f"{self.signal}-amplitude{self.amplitude:g}-seed{seed}"
             metadata = {"signal": self.signal, "amplitude": self.amplitude, "seed": seed, "noise": self.noise}
-            records.append(Experiment(t, u[i], noisy, name, metadata))
+            records.append(Record(t, u[i], noisy, name, metadata))
         return records

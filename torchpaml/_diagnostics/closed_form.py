@@ -23,7 +23,9 @@ from collections.abc import Callable, Sequence
 import sympy
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._fit.initial_state import InitialState
+from torchpaml._physics.base import AbstractPhysics
+from torchpaml._data import Record
 from torchpaml._diagnostics.refits import REFIT_CRITERION_STEP, refit_effect
 from torchpaml._diagnostics.results import ModelScore
 from torchpaml._diagnostics.scoring import score_model
@@ -60,8 +62,9 @@ def _limit(term: str, width: str, variable: str, edge: str) -> str:
     return str(expression.subs(sign, sympy.Abs(s) / s if power >= 1 else sympy.sign(s)))
 
 
-def fit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[float],
-                    widths: dict[str, tuple[float, float]], train: Sequence[Experiment], max_nfev: int, initial_state: str,
+def fit_closed_form(physics: AbstractPhysics, pairs: list[tuple[str, str]], coefficients: list[float],
+                    widths: dict[str, tuple[float, float]], train: Sequence[Record], max_nfev: int,
+                    initial_state: InitialState,
                     budget: Budget | None = None, solver: Solver | None = None
                     ) -> tuple[torch.nn.Module, PhysicsEstimate] | None:
     """``physics + DiscoveredForce(pairs)`` from ``coefficients`` (widths from twice their lower bound, bounded to
@@ -84,9 +87,10 @@ def fit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[fl
     return extended, estimate
 
 
-def refit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[float], widths: dict[str, tuple[float, float]],
-           train: Sequence[Experiment], validation: Sequence[Experiment], rule: SelectionRule,
-           max_nfev: int, initial_state: str, first_order: Callable[[list[tuple[str, str]]], list[float] | None],
+def refit_closed_form(physics: AbstractPhysics, pairs: list[tuple[str, str]], coefficients: list[float],
+                      widths: dict[str, tuple[float, float]],
+           train: Sequence[Record], validation: Sequence[Record], rule: SelectionRule,
+           max_nfev: int, initial_state: InitialState, first_order: Callable[[list[tuple[str, str]]], list[float] | None],
            budget: Budget | None = None, solver: Solver | None = None) -> ModelScore | None:
     """``physics + DiscoveredForce(pairs)`` refitted and scored, with honest numbers (module docstring, step 3);
     ``None`` when no term survives or it blows up. Each reduced support starts from its own first-order coefficients
@@ -145,7 +149,7 @@ def refit_closed_form(physics, pairs: list[tuple[str, str]], coefficients: list[
     return score
 
 
-def _sizes(score: ModelScore, train: Sequence[Experiment]) -> list[float]:
+def _sizes(score: ModelScore, train: Sequence[Record]) -> list[float]:
     """Each discovered term's contribution, $|g c_i|$ times the RMS of $\theta_i$, along the refitted model's first
     training trajectory."""
     model = score.model

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import torch
 
 from torchpaml._budget import REFIT_BUDGET, Budget, OverBudget
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._diagnostics.closed_form import fit_closed_form, refit_closed_form
 from torchpaml._diagnostics.regressors import Columns
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
@@ -124,8 +124,8 @@ class ClosedFormSearch:
     do not determine, the screened single terms compete with it, then one more term at a time (:meth:`best`).
     ``undecided`` names the forms a budget stopped."""
 
-    def __init__(self, ranking: Ranking, library_best: EffectEvidence | None, train: Sequence[Experiment],
-                 validation: Sequence[Experiment], data: Columns, regressed: Regressed, max_nfev: int,
+    def __init__(self, ranking: Ranking, library_best: EffectEvidence | None, train: Sequence[Record],
+                 validation: Sequence[Record], data: Columns, regressed: Regressed, max_nfev: int,
                  deadline: float | None):
         self.baseline, self.rule, self.initial_state = ranking.baseline, ranking.rule, ranking.initial_state
         self.library_best, self.train, self.validation = library_best, train, validation

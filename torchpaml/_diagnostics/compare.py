@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import torch
 
 from torchpaml._errors import ConfigurationError
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._metrics import fit_percent, mismatch, rmse
 
 __all__ = ["Comparison", "compare"]
@@ -28,7 +28,7 @@ class Comparison:
     """
 
     rows: list[dict]
-    experiments: dict[str, Experiment]
+    experiments: dict[str, Record]
     outputs: dict[str, dict[str, torch.Tensor]] = field(repr=False)
 
     def fit(self, experiment: str, model: str) -> float:
@@ -38,7 +38,7 @@ class Comparison:
 
 def compare(
     models: dict[str, Callable[..., torch.Tensor]],
-    experiments: Experiment | list[Experiment],
+    experiments: Record | list[Record],
     **simulate_options,
 ) -> Comparison:
     """Simulate every model on every experiment and score it (module docstring).
@@ -48,7 +48,7 @@ def compare(
         experiments: one record or several (names must differ).
         simulate_options: forwarded to the models (e.g. ``solver=Dopri5()``, :func:`~torchpaml.simulate`).
     """
-    records = [experiments] if isinstance(experiments, Experiment) else list(experiments)
+    records = [experiments] if isinstance(experiments, Record) else list(experiments)
     names = [r.name for r in records]
     if len(set(names)) != len(names):
         raise ConfigurationError(f"experiment names must differ to be told apart in the comparison, got {names}")

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._diagnostics.adequacy import Adequacy, assess_adequacy
 from torchpaml._diagnostics.discoverer import Discoverer
 from torchpaml._diagnostics.discovery import Discovery
@@ -102,7 +102,7 @@ class Diagnosis:
     by_input: AmplitudeBins
     by_output: AmplitudeBins
     hybrids: list[HybridScore]
-    validation: list[Experiment] = field(repr=False)
+    validation: list[Record] = field(repr=False)
     discovery: Discovery | None = None
 
     @property
@@ -154,7 +154,7 @@ def _distinct(first: ModelScore, last: ModelScore) -> list[ModelScore]:
     return [first] if last is first else [first, last]
 
 
-def _stack(records: list[Experiment], what: str) -> tuple[torch.Tensor, torch.Tensor]:
+def _stack(records: list[Record], what: str) -> tuple[torch.Tensor, torch.Tensor]:
     lengths = {len(r.t) for r in records}
     if len(lengths) > 1:
         raise DataError(f"the residual stage stacks the {what} records, which needs equal lengths; got {sorted(lengths)}. "
@@ -162,7 +162,7 @@ def _stack(records: list[Experiment], what: str) -> tuple[torch.Tensor, torch.Te
     return torch.stack([r.u for r in records]), torch.stack([r.y for r in records])
 
 
-def _hybrid(step: ModelScore, train: list[Experiment], validation: list[Experiment], alpha: float) -> HybridScore:
+def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alpha: float) -> HybridScore:
     """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid."""
     t = train[0].elapsed
     residual = ChebyshevHammerstein.for_sampling(alpha, uniform_step(t))
@@ -191,8 +191,8 @@ LEGACY_RANKER = ("rule", "shortlist", "probe", "max_nfev", "refit_budget")
 def diagnose(
     physics: AbstractPhysics,
     candidates: Sequence[AbstractEffect],
-    train: Experiment | Sequence[Experiment],
-    validation: Experiment | Sequence[Experiment],
+    train: Record | Sequence[Record],
+    validation: Record | Sequence[Record],
     *,
     ranker: Ranker | None = None,
     initial_state: str | InitialState = Rest(),
@@ -270,8 +270,8 @@ def _stages(ranker: Ranker | None, discovery: Discoverer | None, legacy: dict) -
     return ranker or Ranker(), discovery
 
 
-def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect], train: list[Experiment],
-                   validation: list[Experiment], discovery: Discoverer | None) -> None:
+def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect], train: list[Record],
+                   validation: list[Record], discovery: Discoverer | None) -> None:
     """Before any fit: the physics runs on the first record, the discovery's terms parse, and every record has more
     samples than twice the most parameters a fit takes and a uniform grid (the residual's exact filter)."""
     most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
@@ -281,7 +281,7 @@ def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect
         discovery.library.build(physics)  # a user term that does not parse is named before any fit
     for record in train + validation:
         if len(record.t) <= 2 * most:
-            raise DataError(f"experiment {record.name!r} has {len(record.t)} samples, too few to fit up to {most} "
+            raise DataError(f"record {record.name!r} has {len(record.t)} samples, too few to fit up to {most} "
                             f"parameters (the physics' and a candidate's) and judge the fit; give records of more "
                             f"than {2 * most} samples, or fix parameters")
         record.require_uniform("diagnose (its Chebyshev-Hammerstein residual, an exactly discretised filter)")

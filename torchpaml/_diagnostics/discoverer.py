@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._diagnostics.discovery import Discovery, discover_missing_force
 from torchpaml._diagnostics.results import Ranking
 from torchpaml._errors import ConfigurationError
@@ -40,7 +40,7 @@ class Discoverer:
             if not (isinstance(value, int) and value >= 1):
                 raise ConfigurationError(f"{name} must be a whole number, at least 1; got {value!r}")
 
-    def discover(self, ranking: Ranking, train: Sequence[Experiment], validation: Sequence[Experiment],
+    def discover(self, ranking: Ranking, train: Sequence[Record], validation: Sequence[Record],
                  deadline: float | None = None) -> Discovery:
         """:func:`~torchpaml._diagnostics.discover_missing_force` on ``ranking`` (the ladder's last) with these
         settings."""

@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
 from torchpaml._diagnostics.closed_form_search import ClosedFormSearch, Regressed
 from torchpaml._diagnostics.regressors import columns
@@ -104,8 +104,8 @@ class Discovery:
 
 def discover_missing_force(
     ranking: Ranking,
-    train: Experiment | Sequence[Experiment],
-    validation: Experiment | Sequence[Experiment],
+    train: Record | Sequence[Record],
+    validation: Record | Sequence[Record],
     *,
     library: TermLibrary | None = None,
     regression: SparseRegression | None = None,

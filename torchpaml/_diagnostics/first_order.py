@@ -9,7 +9,7 @@ import functools
 import torch
 from torch import nn
 
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._diagnostics.probes import Secant, TangentLinear
 from torchpaml._errors import ConfigurationError
 from torchpaml._fit.physics_fit import PhysicsEstimate
@@ -29,7 +29,7 @@ class Engines:
     reference of the zero-strength check): the tangent-linear model around a linear base for an effect
     without states of its own, else secants by the fixed-step solver the base was fitted with."""
 
-    def __init__(self, base: AbstractPhysics, train: list[Experiment], fit: PhysicsEstimate, scale: float):
+    def __init__(self, base: AbstractPhysics, train: list[Record], fit: PhysicsEstimate, scale: float):
         self.base, self.train, self.initial_states, self.scale = base, train, fit.initial_states, scale
         self.solver = engine_solver(fit.solver)
         self.built: dict[str, tuple[TangentLinear | Secant, torch.Tensor] | None] = {}
@@ -87,7 +87,7 @@ def share(projected: torch.Tensor, energy: float, r: torch.Tensor) -> float:
     return float(projected @ r) ** 2 / (energy * float(r @ r))
 
 
-def first_order(extended, name: str, fit: PhysicsEstimate, scale: float, probe: float,
+def first_order(extended: AbstractPhysics, name: str, fit: PhysicsEstimate, scale: float, probe: float,
                  reference: torch.Tensor, engine: TangentLinear | Secant) -> tuple[float, int, float, torch.Tensor]:
     r"""(score, order q, first-order strength, move) of the effect whose strength parameter is ``name``
     (module docstring).
@@ -133,7 +133,7 @@ def first_order(extended, name: str, fit: PhysicsEstimate, scale: float, probe: 
     return score, order, probe * (beta if order == 1 else beta ** (1 / order)), move
 
 
-def by_promise(base, candidate: AbstractEffect, train: list[Experiment], fit: PhysicsEstimate, delta: float,
+def by_promise(base, candidate: AbstractEffect, train: list[Record], fit: PhysicsEstimate, delta: float,
                 reference: torch.Tensor, engine: TangentLinear | Secant, scale: float) -> list[tuple[dict[str, float], nn.Module]]:
     r"""``(setting, base + candidate)`` for each of the candidate's starts (:meth:`~AbstractEffect.starts`), the most
     promising first: by the unsigned share of the residual that one probe at strength ``delta`` explains,

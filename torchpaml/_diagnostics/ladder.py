@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._diagnostics.ranker import Ranker
 from torchpaml._diagnostics.results import ModelScore, Ranking
 from torchpaml._diagnostics.scoring import as_records
@@ -45,8 +45,8 @@ class Ladder:
 def model_ladder(
     physics: AbstractPhysics,
     candidates: Sequence[AbstractEffect],
-    train: Experiment | Sequence[Experiment],
-    validation: Experiment | Sequence[Experiment],
+    train: Record | Sequence[Record],
+    validation: Record | Sequence[Record],
     *,
     ranker: Ranker = Ranker(),
     initial_state: str | InitialState = Rest(),

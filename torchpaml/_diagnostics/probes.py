@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._errors import DataError, SimulationError
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._grid import uniform_step
@@ -25,7 +25,7 @@ from torchpaml._simulate.blowup import checked_output
 __all__ = ["Secant", "TangentLinear", "assigned"]
 
 
-def assigned(extended, name: str, value: float) -> bool:
+def assigned(extended: AbstractPhysics, name: str, value: float) -> bool:
     """Set the strength ``name`` to ``value``; ``False`` (and unchanged) where its constraint forbids it."""
     try:
         extended.assign(**{name: value})
@@ -47,7 +47,7 @@ class TangentLinear:
     The probes of one effect are one exact simulation (a filter) per record, with a row per strength.
     """
 
-    def __init__(self, base: AbstractPhysics, train: list[Experiment], initial_states: list[torch.Tensor]):
+    def __init__(self, base: AbstractPhysics, train: list[Record], initial_states: list[torch.Tensor]):
         A, B, C, _ = (m.detach() for m in base.state_space())
         n = A.shape[0]
         self.base, self.A, self.C = base, A, C
@@ -61,7 +61,8 @@ class TangentLinear:
                 self.records.append((record.elapsed, u, states, h, record.hold))
 
     @classmethod
-    def of(cls, base: AbstractPhysics, train: list[Experiment], initial_states: list[torch.Tensor]) -> TangentLinear | None:
+    def of(cls, base: AbstractPhysics, train: list[Record],
+           initial_states: list[torch.Tensor]) -> TangentLinear | None:
         """The tangent-linear model when ``base`` is linear physics on uniform records, else ``None``."""
         if base.state_space() is None:
             return None
@@ -70,18 +71,18 @@ class TangentLinear:
         except DataError:
             return None
 
-    def outputs(self, extended) -> torch.Tensor:
+    def outputs(self, extended: AbstractPhysics) -> torch.Tensor:
         """The first-order outputs of ``extended`` (the base plus effects) on the training records, concatenated."""
         return self._responses(extended, [{}])[0]
 
-    def probes(self, extended, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
+    def probes(self, extended: AbstractPhysics, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
         """The first-order outputs with the strength ``name`` at each of ``values`` (``None`` where its constraint
         forbids the value), one filter run per record for all of them."""
         allowed = [value for value in values if assigned(extended, name, value)]
         responses = iter(self._responses(extended, [{name: value} for value in allowed]))
         return [next(responses) if value in allowed else None for value in values]
 
-    def _responses(self, extended, settings: list[dict[str, float]]) -> list[torch.Tensor]:
+    def _responses(self, extended: AbstractPhysics, settings: list[dict[str, float]]) -> list[torch.Tensor]:
         """The first-order outputs of ``extended`` with each of ``settings`` assigned, one filter row each."""
         n = self.A.shape[0]
         parts = []
@@ -109,7 +110,7 @@ class Secant:
     needs a sweep or two instead of the several of a cold start.
     """
 
-    def __init__(self, base: AbstractPhysics, train: list[Experiment], initial_states: list[torch.Tensor],
+    def __init__(self, base: AbstractPhysics, train: list[Record], initial_states: list[torch.Tensor],
                  solver: FixedStep):
         self.records, self.solver = [], solver
         with torch.no_grad():
@@ -118,7 +119,7 @@ class Secant:
                 guess = solve_shooting(base, t, u, start, solver, sensitivities=False, hold=hold).trajectory
                 self.records.append((t, u, start, hold, guess))
 
-    def outputs(self, extended) -> torch.Tensor:
+    def outputs(self, extended: AbstractPhysics) -> torch.Tensor:
         """The outputs of ``extended`` on the training records, concatenated."""
         parts = []
         with torch.no_grad():
@@ -129,13 +130,13 @@ class Secant:
                 parts.append(checked_output(extended.output(states, u), t).flatten())
         return torch.cat(parts)
 
-    def probes(self, extended, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
+    def probes(self, extended: AbstractPhysics, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
         """The outputs with the strength ``name`` at each of ``values``; ``None`` where its constraint forbids
         the value or the model blows up at it; raises :class:`~torchpaml._errors.SimulationError` where it blows up
         at strength 0."""
         return [self._output_at(extended, name, value) for value in values]
 
-    def _output_at(self, extended, name: str, value: float) -> torch.Tensor | None:
+    def _output_at(self, extended: AbstractPhysics, name: str, value: float) -> torch.Tensor | None:
         """The outputs at strength ``value``; ``None`` where its constraint forbids it or the simulation blows up at a
         strength other than 0 (an unstable sign of the strength: a negative lag)."""
         if not assigned(extended, name, value):

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import torch
 
 from torchpaml._budget import REFIT_BUDGET
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._diagnostics.ranking import rank_missing_effects
 from torchpaml._diagnostics.results import Ranking
 from torchpaml._diagnostics.selection import SelectionRule
@@ -52,8 +52,8 @@ class Ranker:
             if not (value > 0 and math.isfinite(value)):
                 raise ConfigurationError(f"{name} must be positive and finite, got {value!r}")
 
-    def rank(self, physics: AbstractPhysics, candidates: Sequence[AbstractEffect], train: Sequence[Experiment],
-             validation: Sequence[Experiment], *, initial_state: InitialState = Rest(),
+    def rank(self, physics: AbstractPhysics, candidates: Sequence[AbstractEffect], train: Sequence[Record],
+             validation: Sequence[Record], *, initial_state: InitialState = Rest(),
              start_states: Sequence[torch.Tensor] | None = None, deadline: float | None = None,
              solver: Solver | None = None) -> Ranking:
         """:func:`~torchpaml._diagnostics.rank_missing_effects` with these settings."""

@@ -51,7 +51,7 @@ from collections.abc import Sequence
 import torch
 
 from torchpaml._budget import REFIT_BUDGET, Budget
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._diagnostics.first_order import Engines, by_promise, first_order
 from torchpaml._diagnostics.refits import Refits, cannot_pass, free_shape
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
@@ -73,8 +73,8 @@ log = logging.getLogger(__name__)
 def rank_missing_effects(
     physics: AbstractPhysics,
     candidates: Sequence[AbstractEffect],
-    train: Experiment | Sequence[Experiment],
-    validation: Experiment | Sequence[Experiment],
+    train: Record | Sequence[Record],
+    validation: Record | Sequence[Record],
     *,
     rule: SelectionRule | None = None,
     shortlist: int = 2,
@@ -155,11 +155,11 @@ def _applicable(physics: AbstractPhysics, candidates: Sequence[AbstractEffect]
     names = [c.name for c in candidates]
     if len(set(names)) != len(names):
         raise ConfigurationError(f"candidate effects must have distinct names, got {names}")
-    present = set(getattr(physics, "effects", {}))
+    present = set(physics.effect_names())
     if present & set(names):
         raise ConfigurationError(f"candidate(s) {sorted(present & set(names))} are already in "
                                  f"{physics.display_name}; drop them from the candidates")
-    base_model = getattr(physics, "base", physics)
+    base_model = physics.without_effects()
     skipped = {c.name: reason for c in candidates if (reason := c.applies_to(base_model)) is not None}
     if skipped and len(skipped) == len(candidates):
         raise ConfigurationError(f"none of the candidate effects applies to {physics.display_name}: "
@@ -168,7 +168,7 @@ def _applicable(physics: AbstractPhysics, candidates: Sequence[AbstractEffect]
     return [c for c in candidates if c.name not in skipped], skipped
 
 
-def _scored(base: AbstractPhysics, candidates: list[AbstractEffect], train: list[Experiment], fit: PhysicsEstimate,
+def _scored(base: AbstractPhysics, candidates: list[AbstractEffect], train: list[Record], fit: PhysicsEstimate,
             probe: float) -> tuple[list[EffectEvidence], dict[str, tuple]]:
     """Each candidate's first-order evidence, and, for each one scored, ``(base + candidate, its strength's name, the
     first-order move, its bounds)`` for its refit."""

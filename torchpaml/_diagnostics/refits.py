@@ -11,8 +11,9 @@ import math
 
 import torch
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._budget import Budget, OverBudget
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
 from torchpaml._diagnostics.probes import assigned
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore
@@ -48,7 +49,7 @@ GATE_MARGIN = 4.0
 RESCUE_FRACTIONS = (0.5, 0.25)
 
 
-def refit_effect(extended, name: str, start: float, train: list[Experiment], max_nfev: int,
+def refit_effect(extended: AbstractPhysics, name: str, start: float, train: list[Record], max_nfev: int,
                  initial_state: str | InitialState,
                  baseline: PhysicsEstimate | None = None, move: torch.Tensor | None = None, ftol: float = 1e-10,
                  budget: Budget | None = None, bounds: dict[str, tuple[float, float]] | None = None,
@@ -114,7 +115,8 @@ def refit_effect(extended, name: str, start: float, train: list[Experiment], max
     return estimate
 
 
-def _halving_strength(extended, name: str, start: float, fit, states: list[torch.Tensor] | None) -> PhysicsEstimate:
+def _halving_strength(extended: AbstractPhysics, name: str, start: float, fit,
+                      states: list[torch.Tensor] | None) -> PhysicsEstimate:
     """``fit`` from the strength ``start``, halved while it breaks its constraint or blows up the simulation, down
     to 0 (:func:`refit_effect`)."""
     for strength in [start * 0.5**i for i in range(20)] + [0.0]:
@@ -130,7 +132,8 @@ def _halving_strength(extended, name: str, start: float, fit, states: list[torch
     raise ConfigurationError(f"{name!r} cannot be 0, but an effect's strength parameter must switch it off at 0")
 
 
-def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tensor] | None, warm: list[WarmStart],
+def _training_mismatch(physics: AbstractPhysics, train: list[Record], states: list[torch.Tensor] | None,
+                       warm: list[WarmStart],
                        solver: Solver) -> float:
     r"""The :func:`~torchpaml._metrics.mismatch` over the training records from ``states`` (or rest), simulated by the
     solver that a fit with ``solver`` starts from (:func:`~torchpaml._simulate.solvers.engine_solver`; the fit then
@@ -145,7 +148,7 @@ def _training_mismatch(physics, train: list[Experiment], states: list[torch.Tens
     return mismatch(torch.cat([r.y.flatten() for r in train]), torch.cat(outputs))
 
 
-def free_shape(entry: EffectEvidence, train: list[Experiment], validation: list[Experiment], rule: SelectionRule,
+def free_shape(entry: EffectEvidence, train: list[Record], validation: list[Record], rule: SelectionRule,
                 max_nfev: int, initial_state: InitialState, ftol: float, budget: Budget,
                 bounds: dict[str, tuple[float, float]]) -> None:
     """``entry``'s refit replaced by its model refitted with the effect's shape parameters freed, if that beats it by
@@ -169,7 +172,8 @@ def free_shape(entry: EffectEvidence, train: list[Experiment], validation: list[
         entry.refit = candidate
 
 
-def cannot_pass(score: float, rule: SelectionRule, validation: list[Experiment], extended, base) -> str | None:
+def cannot_pass(score: float, rule: SelectionRule, validation: list[Record], extended: AbstractPhysics,
+                base) -> str | None:
     r"""Why a candidate whose first-order score is ``score`` cannot pass ``rule``, even if its refit explained
     :data:`GATE_MARGIN` times that share $s$ of the residual's energy; ``None`` where it could.
 
@@ -196,7 +200,7 @@ class Refits:
     """The shortlist's refits on one rung: each from its first-order start (:func:`refit_effect`), within its budget
     (``template``'s limits, counted from the refit's own start), scored on validation."""
 
-    def __init__(self, name: str, train: list[Experiment], validation: list[Experiment], fit: PhysicsEstimate,
+    def __init__(self, name: str, train: list[Record], validation: list[Record], fit: PhysicsEstimate,
                  baseline: ModelScore, rule: SelectionRule, initial_state: InitialState, max_nfev: int,
                  template: Budget):
         self.name, self.train, self.validation, self.fit, self.baseline = name, train, validation, fit, baseline
@@ -207,7 +211,7 @@ class Refits:
         """A fresh budget for the refit of ``effect``, with the rung's limits."""
         return self.template.restarted(f"refitting {self.name} + {effect}")
 
-    def run(self, entry: EffectEvidence, extended, strength: str, move: torch.Tensor,
+    def run(self, entry: EffectEvidence, extended: AbstractPhysics, strength: str, move: torch.Tensor,
             bounds: dict[str, tuple[float, float]]) -> None:
         """Refit ``entry``'s model and record in ``entry`` the result, the failure, or that it is undecided."""
         budget = self.budget(entry.effect)

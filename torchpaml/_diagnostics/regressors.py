@@ -9,7 +9,8 @@ from dataclasses import dataclass
 
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._physics.base import AbstractPhysics
+from torchpaml._data import Record
 from torchpaml._data.simulation import record_jacobian, record_response, record_states, simulate_record
 from torchpaml._diagnostics.probes import assigned
 from torchpaml._diagnostics.results import ModelScore
@@ -46,7 +47,7 @@ class Columns:
 
 
 def columns(neural: NeuralForceFit, baseline: ModelScore, terms: list[str], equations: dict[str, int],
-             variables: tuple[str, ...], train: Sequence[Experiment], estimate: bool) -> Columns:
+             variables: tuple[str, ...], train: Sequence[Record], estimate: bool) -> Columns:
     """:class:`Columns` along the neural model's trajectories (module docstring, step 2), around the fitted physics
     of ``baseline`` from its training records' initial states."""
     physics, solver, starts = baseline.model, baseline.solver, baseline.train_states
@@ -91,7 +92,8 @@ def columns(neural: NeuralForceFit, baseline: ModelScore, terms: list[str], equa
     return Columns(*(torch.cat(parts[k]) for k in ("responses", "learned", "measured", "jacobian")), samples, widths)
 
 
-def _own_sensitivities(physics, names: list[str], states: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+def _own_sensitivities(physics: AbstractPhysics, names: list[str], states: torch.Tensor,
+                       u: torch.Tensor) -> torch.Tensor:
     r"""$\partial f/\partial\theta_j$ and $\partial h/\partial\theta_j$ at the given states, (N, n_state + n_output, p),
     by central differences in each physical parameter $\theta_j$: what the physics' own parameters can change,
     evaluated on the same trajectory as the terms."""

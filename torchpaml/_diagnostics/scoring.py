@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
 from torchpaml._diagnostics.results import ModelScore
 from torchpaml._diagnostics.selection import SelectionRule
@@ -18,14 +18,14 @@ from torchpaml._simulate.solvers import continued
 __all__ = ["as_records", "score_model"]
 
 
-def as_records(experiments: Experiment | Sequence[Experiment]) -> list[Experiment]:
-    return [experiments] if isinstance(experiments, Experiment) else list(experiments)
+def as_records(experiments: Record | Sequence[Record]) -> list[Record]:
+    return [experiments] if isinstance(experiments, Record) else list(experiments)
 
 
 def score_model(
     physics: AbstractPhysics,
     fit: PhysicsEstimate,
-    validation: Sequence[Experiment],
+    validation: Sequence[Record],
     rule: SelectionRule | None = None,
     initial_state: InitialState = Rest(),
 ) -> ModelScore:
@@ -46,7 +46,7 @@ def score_model(
         norm += float(torch.sum(record.y**2))
         n += record.y.numel()
     value = (rule or SelectionRule()).value(sse, n, len(fit.parameters))
-    equation = physics.equation() if hasattr(physics, "equation") else physics.display_name
+    equation = physics.equation()
     return ModelScore(physics.display_name, equation, physics.physical_parameters(), fit.mismatch,
                       (sse / norm) ** 0.5, value, physics, dict(fit.uncertainty.std), fit.uncertainty.warning,
                       fit.initial_states, [physics.initial_state(1)[0] if x0 is None else x0 for x0 in starts],

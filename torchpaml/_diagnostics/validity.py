@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._physics.base import AbstractPhysics
+from torchpaml._data import Record
 from torchpaml._metrics import mismatch
 
 __all__ = ["AmplitudeBins", "error_by_amplitude", "ValidityMap", "validity_map"]
@@ -52,8 +53,8 @@ class ValidityMap:
 
 
 def validity_map(
-    physics,
-    measure: Callable[[float, float], Experiment],
+    physics: AbstractPhysics,
+    measure: Callable[[float, float], Record],
     amplitudes: list[float],
     frequencies: list[float],
     **simulate_options,

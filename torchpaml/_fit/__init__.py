@@ -4,9 +4,8 @@ neural force and sparse regression of discovery."""
 from torchpaml._fit.first_order import reestimate_shift
 from torchpaml._fit.initial_state import Estimate, InitialState, Rest
 from torchpaml._fit.neural_force import NeuralForceFit, fit_neural_force
-from torchpaml._fit.output_error import minimize_output_error
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
-from torchpaml._fit.sparse_regression import SparseRegression, forward_selection, stlsq
+from torchpaml._fit.sparse_regression import SparseRegression, stlsq
 from torchpaml._fit.residual_fit import (
     ResidualEstimate,
     fit_chebyshev_hammerstein,
@@ -23,10 +22,8 @@ __all__ = [
     "ResidualEstimate",
     "fit_chebyshev_hammerstein",
     "fit_neural_force",
-    "forward_selection",
     "fit_physics",
     "fit_residual",
-    "minimize_output_error",
     "reestimate_shift",
     "SparseRegression",
     "stlsq",

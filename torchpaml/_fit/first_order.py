@@ -11,14 +11,15 @@ import copy
 
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._physics.base import AbstractPhysics
+from torchpaml._data import Record
 
 from torchpaml._fit.physics_fit import fit_physics
 
 __all__ = ["reestimate_shift"]
 
 
-def reestimate_shift(physics, residual, t, u, y, **fit_options) -> dict[str, float]:
+def reestimate_shift(physics: AbstractPhysics, residual, t, u, y, **fit_options) -> dict[str, float]:
     r"""$\{\theta: \hat\theta(y - r) - \hat\theta(y)\}$ for the learnable parameters; ``physics`` is left as it is.
 
     ``residual`` is either a module that depends on u alone (``residual(t, u)``, as the
@@ -31,5 +32,5 @@ def reestimate_shift(physics, residual, t, u, y, **fit_options) -> dict[str, flo
     with torch.no_grad():
         compensated = y - (residual if isinstance(residual, torch.Tensor) else residual(t, u))
     refit = copy.deepcopy(physics)
-    after = fit_physics(refit, Experiment.records(t, u, compensated), **fit_options).parameters
+    after = fit_physics(refit, Record.records(t, u, compensated), **fit_options).parameters
     return {name: after[name] - before[name] for name in before}

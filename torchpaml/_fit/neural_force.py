@@ -21,7 +21,8 @@ from dataclasses import dataclass
 
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._physics.base import AbstractPhysics
+from torchpaml._data import Record
 from torchpaml._fit.output_error import minimize_output_error
 from torchpaml._physics.terms import variables_of
 from torchpaml._residual.mlp import MLPRate, RateAugmented
@@ -44,8 +45,8 @@ class NeuralForceFit:
 
 
 def fit_neural_force(
-    physics,
-    records: Sequence[Experiment],
+    physics: AbstractPhysics,
+    records: Sequence[Record],
     initial_states: Sequence[torch.Tensor] | None = None,
     *,
     hidden: int = 32,

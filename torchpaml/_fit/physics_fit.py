@@ -37,7 +37,7 @@ import torch
 from scipy.optimize import least_squares
 
 from torchpaml._budget import Budget
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._errors import ConfigurationError, ResolutionError
 from torchpaml._fit.initial_state import Estimate, InitialState, Rest, as_initial_state
 from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solver
@@ -82,7 +82,8 @@ class PhysicsEstimate:
     solver: Solver
 
 
-def _raw_bounds(physics, names: list[str], bounds: dict[str, tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
+def _raw_bounds(physics: AbstractPhysics, names: list[str], bounds: dict[str, tuple[float,
+                float]]) -> tuple[np.ndarray, np.ndarray]:
     lower, upper = np.full(len(names), -np.inf), np.full(len(names), np.inf)
     unknown = sorted(set(bounds) - set(names))
     if unknown:
@@ -106,7 +107,7 @@ def _raw_bounds(physics, names: list[str], bounds: dict[str, tuple[float, float]
 
 def fit_physics(
     physics: AbstractPhysics,
-    records: Experiment | Sequence[Experiment],
+    records: Record | Sequence[Record],
     *,
     bounds: dict[str, tuple[float, float]] | None = None,
     initial_state: str | InitialState = Rest(),
@@ -122,7 +123,7 @@ def fit_physics(
     Args:
         physics: the model; its learnable parameters are fitted, the others stay fixed. With
             ``Estimate()`` it may have none (then only the initial states are fitted).
-        records: one or more :class:`~torchpaml._data.Experiment`.
+        records: one or more :class:`~torchpaml._data.Record`.
         bounds: ``{name: (lower, upper)}`` in physical units.
         initial_state: ``Rest()`` (each record starts at rest; or ``"rest"``) or ``Estimate()`` (``"estimate"``:
             each record's initial state is fitted too, an unbounded unknown per state; see
@@ -143,7 +144,7 @@ def fit_physics(
     """
     initial_state = as_initial_state(initial_state)
     switch = solver is None or isinstance(solver, Auto)  # may go on with the implicit method
-    records = [records] if isinstance(records, Experiment) else list(records)
+    records = [records] if isinstance(records, Record) else list(records)
     names = _checked_unknowns(physics, records, initial_state, start_states)
     problem = TrustRegionProblem(physics, records, names, initial_state.estimated, _starting_solver(solver),
                                  [WarmStart() for _ in records] if warm is None else list(warm), budget)
@@ -163,7 +164,7 @@ def fit_physics(
     return _estimate(problem, result.x)
 
 
-def _checked_unknowns(physics: AbstractPhysics, records: list[Experiment], initial_state: InitialState,
+def _checked_unknowns(physics: AbstractPhysics, records: list[Record], initial_state: InitialState,
                       start_states: Sequence[torch.Tensor] | None) -> list[str]:
     """The learnable parameters' names, after checking that the fit has unknowns and ``start_states`` fits."""
     if start_states is not None and (not initial_state.estimated or len(start_states) != len(records)):
@@ -229,7 +230,7 @@ def _starting_solver(solver: Solver | None) -> FixedStep:
     return solver.at(1) if solver.substeps == "auto" else solver
 
 
-def estimate_initial_state(physics: AbstractPhysics, record: Experiment, samples: int | None = None,
+def estimate_initial_state(physics: AbstractPhysics, record: Record, samples: int | None = None,
                            solver: Solver | None = None) -> torch.Tensor:
     """The initial state (n_state,) that best explains the first ``samples`` of ``record`` (all if ``None``).
 

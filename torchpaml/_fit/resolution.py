@@ -28,7 +28,8 @@ from collections.abc import Sequence
 
 import torch
 
-from torchpaml._data import Experiment
+from torchpaml._physics.base import AbstractPhysics
+from torchpaml._data import Record
 from torchpaml._errors import ResolutionError, SimulationError
 from torchpaml._simulate.lti import exact_step
 from torchpaml._data.simulation import record_states, simulate_record
@@ -44,7 +45,8 @@ STEP_FLOOR = 1e-6
 PROBE_STRIDE = 16
 
 
-def step_gap(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None],
+def step_gap(physics: AbstractPhysics, solver: FixedStep, records: Sequence[Record],
+             states: Sequence[torch.Tensor | None],
              outputs: Sequence[torch.Tensor] | None = None) -> float:
     """$g$ (module docstring) of ``solver`` over the records that the engine simulates, from each record's initial
     state (or rest); 0 where every record takes the exact path. ``outputs``: each record's output at ``solver``
@@ -60,12 +62,12 @@ def step_gap(physics, solver: FixedStep, records: Sequence[Experiment], states: 
     return 0.0 if norm == 0.0 else math.sqrt(squared / norm)
 
 
-def _stiffness(physics, record: Experiment, x0: torch.Tensor | None, solver: FixedStep) -> float:
+def _stiffness(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None, solver: FixedStep) -> float:
     r"""$\sigma$ of ``record`` (:func:`~torchpaml._simulate.stiffness.stiffness`) along the trajectory that the
     L-stable TR-BDF2 draws at one step per :data:`PROBE_STRIDE` samples: it follows the physics into a stiff region
     that an unstable explicit step can leave unseen, at a fraction of a simulation's cost; along ``solver``'s own
     trajectory where TR-BDF2's Newton does not converge (a corner it cannot resolve at that step)."""
-    coarse = Experiment(record.t[::PROBE_STRIDE], record.u[::PROBE_STRIDE], record.y[::PROBE_STRIDE], record.name,
+    coarse = Record(record.t[::PROBE_STRIDE], record.u[::PROBE_STRIDE], record.y[::PROBE_STRIDE], record.name,
                         hold=record.hold)
     try:
         states, probe, stride = record_states(physics, coarse, x0, TRBDF2(substeps=1)), coarse, PROBE_STRIDE
@@ -74,7 +76,8 @@ def _stiffness(physics, record: Experiment, x0: torch.Tensor | None, solver: Fix
     return stiffness(physics, probe.elapsed, probe.u[None], states[None]) / stride
 
 
-def stable_solver(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None],
+def stable_solver(physics: AbstractPhysics, solver: FixedStep, records: Sequence[Record],
+                  states: Sequence[torch.Tensor | None],
                   most_stable: int = MAX_SUBSTEPS) -> FixedStep:
     """``solver`` at the substeps where its step is stable along the trajectory of ``physics``
     (:mod:`~torchpaml._simulate.stiffness`): itself for an implicit method, or where every record takes the exact
@@ -86,7 +89,8 @@ def stable_solver(physics, solver: FixedStep, records: Sequence[Experiment], sta
     return solver.at(stable_substeps(solver, sigma, most_stable))
 
 
-def resolved_solver(physics, solver: FixedStep, records: Sequence[Experiment], states: Sequence[torch.Tensor | None],
+def resolved_solver(physics: AbstractPhysics, solver: FixedStep, records: Sequence[Record],
+                    states: Sequence[torch.Tensor | None],
                     misfit: float, most_stable: int = MAX_SUBSTEPS, outputs: Sequence[torch.Tensor] | None = None
                     ) -> FixedStep:
     """The solver at the substeps where the fitted ``physics`` passes the step check (module docstring): ``solver``

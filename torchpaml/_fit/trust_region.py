@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from torchpaml._budget import Budget
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._data.simulation import record_jacobian
 from torchpaml._errors import SimulationError
 from torchpaml._physics.base import AbstractPhysics, complete_state
@@ -31,7 +31,7 @@ class TrustRegionProblem:
     the simulations counted and the lowest cost kept; ``solver`` is the fixed-step solver of the records'
     simulations, which the step check may replace (:meth:`use`)."""
 
-    def __init__(self, physics: AbstractPhysics, records: list[Experiment], names: list[str], estimated: bool,
+    def __init__(self, physics: AbstractPhysics, records: list[Record], names: list[str], estimated: bool,
                  solver: FixedStep, warm: list[WarmStart], budget: Budget | None):
         self.physics, self.records, self.names, self.estimated = physics, records, names, estimated
         self.solver, self.warm, self.budget = solver, warm, budget

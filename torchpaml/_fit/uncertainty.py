@@ -29,6 +29,8 @@ from dataclasses import dataclass
 import torch
 from scipy.stats import t as student_t
 
+from torchpaml._physics.base import AbstractPhysics
+
 __all__ = ["COLLINEARITY_LIMIT", "LOOSE", "IdentifiabilityWarning", "Uncertainty", "constraint_slopes", "parameter_uncertainty"]
 
 #: Brun et al. (2001) call a parameter set poorly identifiable above a collinearity index of 10 to 15.
@@ -60,7 +62,7 @@ class Uncertainty:
     warning: str | None
 
 
-def constraint_slopes(physics, names: list[str]) -> torch.Tensor:
+def constraint_slopes(physics: AbstractPhysics, names: list[str]) -> torch.Tensor:
     r"""$d\theta/d\rho$ of each named parameter's constraint map at its current raw value, (p,).
 
     A central difference (step 1e-6 max(1, |rho|)) of the smooth map, so that it also works where

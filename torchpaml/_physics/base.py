@@ -44,7 +44,7 @@ from torchpaml._parameters import Interval, describe_parameters, format_table, w
 __all__ = ["AbstractPhysics", "SecondOrderPhysics", "complete_state", "state_vector"]
 
 
-def complete_state(physics, x0: torch.Tensor | None, batch: int) -> torch.Tensor:
+def complete_state(physics: AbstractPhysics, x0: torch.Tensor | None, batch: int) -> torch.Tensor:
     """The initial state (batch, n_state) to simulate ``physics`` from: rest (``physics.initial_state``) where
     ``x0`` is ``None``; ``x0`` itself; or, where ``x0`` holds only the first states (those of the base of
     ``physics + effect``), ``x0`` followed by the rest of ``physics.initial_state`` (the effects' own states at
@@ -95,6 +95,18 @@ class AbstractPhysics(nn.Module):
     def state_space(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor] | None:
         """$(A, B, C, D)$ for linear physics, ``None`` (the default) for nonlinear physics."""
         return None
+
+    def equation(self) -> str:
+        """The model in words: the class's name (a composed model adds each effect's term)."""
+        return self.display_name
+
+    def without_effects(self) -> AbstractPhysics:
+        """The physics under the added effects: itself (a composed model's ``base``)."""
+        return self
+
+    def effect_names(self) -> tuple[str, ...]:
+        """The names of the effects added to the physics: none (a composed model's)."""
+        return ()
 
     def linear_base(self) -> AbstractPhysics | None:
         """Linear physics on the same states whose trajectory lies near this model's, or ``None``: the model itself

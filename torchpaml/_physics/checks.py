@@ -17,7 +17,7 @@ from collections.abc import Callable
 import torch
 
 from torchpaml._errors import PhysicsError
-from torchpaml._physics.base import SecondOrderPhysics
+from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics
 
 __all__ = ["check_physics"]
 
@@ -43,14 +43,14 @@ def _evaluate(name: str, method: str, call: Callable[[], torch.Tensor], expected
                            "the formula (a division by a state that starts at 0, a log or sqrt of a negative value)")
 
 
-def check_physics(physics, t: torch.Tensor, u: torch.Tensor) -> None:
+def check_physics(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor) -> None:
     """Evaluate ``physics``' methods once (module docstring) on t (time,), u (time, n_input); ``PhysicsError`` if
     one fails."""
     k = min(SAMPLES, len(t))
     name, parameters = physics.display_name, physics.physical_parameters()
     x, u, t = physics.initial_state(k).to(u), u[:k], t[:k]
     n = physics.state_dim
-    base = getattr(physics, "base", physics)
+    base = physics.without_effects()
     if isinstance(base, SecondOrderPhysics) and base is physics:
         _evaluate(name, "acceleration", lambda: physics.acceleration(t, x[:, 0], x[:, 1], u[:, 0]), (k,),
                   "(batch,) from x, v, u of shape (batch,)", parameters)

@@ -28,7 +28,7 @@ from torchpaml._physics.effects import AbstractEffect
 __all__ = ["ComposedModel", "compose"]
 
 
-def compose(physics, effect: AbstractEffect) -> ComposedModel:
+def compose(physics: AbstractPhysics, effect: AbstractEffect) -> ComposedModel:
     """``physics + effect`` (see the module docstring)."""
     if not isinstance(effect, AbstractEffect):
         raise ConfigurationError(f"can only add an AbstractEffect to physics, got {type(effect).__name__}")
@@ -146,6 +146,12 @@ class ComposedModel(AbstractPhysics):
         if leaf and head in self.effects:
             return self.effects[head], leaf
         return self.base, name
+
+    def without_effects(self) -> AbstractPhysics:
+        return self.base
+
+    def effect_names(self) -> tuple[str, ...]:
+        return tuple(self.effects)
 
     def equation(self) -> str:
         """The model in words: the base's class and each effect's term."""

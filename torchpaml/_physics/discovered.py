@@ -25,6 +25,7 @@ from collections.abc import Mapping, Sequence
 
 import torch
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._errors import ConfigurationError
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effects import AbstractEffect
@@ -84,7 +85,7 @@ class DiscoveredForce(AbstractEffect):
         self.equation = "+ " + (" + ".join(f"{n}*{t}" for n, t in zip(self.parameter_names, self.terms, strict=True))
                                 or "0")
 
-    def applies_to(self, physics) -> str | None:
+    def applies_to(self, physics: AbstractPhysics) -> str | None:
         variables, equations = variables_of(physics)
         wrong = sorted({e for e in self.equations if e not in equations})
         if wrong:
@@ -96,7 +97,7 @@ class DiscoveredForce(AbstractEffect):
             return f"its terms use {unknown}, which are not variables of {physics.display_name} ({list(variables)})"
         return None
 
-    def rate(self, physics, x, u):
+    def rate(self, physics: AbstractPhysics, x, u):
         values = {name: x[..., i] for name, i in state_columns(physics).items()}
         values["u"] = u[..., 0]
         equations = variables_of(physics)[1]

@@ -48,6 +48,7 @@ import math
 
 import torch
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effect import AbstractEffect, EffectState
 from torchpaml._physics.memory_effects import DynamicFriction, Hysteresis, InputLag
@@ -88,7 +89,7 @@ class CubicStiffness(AbstractEffect):
         super().__init__()
         register_parameters(self, [PhysicalParameter("k3", k3, "1/(s^2 m^2)", Real(), "cubic stiffness")], learn)
 
-    def force(self, physics, x, v, u):
+    def force(self, physics: AbstractPhysics, x, v, u):
         return -self.k3 * x**3
 
 
@@ -101,7 +102,7 @@ class QuadraticStiffness(AbstractEffect):
         super().__init__()
         register_parameters(self, [PhysicalParameter("k2", k2, "1/(s^2 m)", Real(), "quadratic stiffness")], learn)
 
-    def force(self, physics, x, v, u):
+    def force(self, physics: AbstractPhysics, x, v, u):
         return -self.k2 * x**2
 
 
@@ -116,13 +117,13 @@ class PendulumRestoring(AbstractEffect):
                                                       physical=(0.0, 1.0))],
                             learn)
 
-    def applies_to(self, physics):
+    def applies_to(self, physics: AbstractPhysics):
         reason = super().applies_to(physics)
         if reason is None and not hasattr(physics, "omega0"):
             return f"pendulum_restoring scales with the base's omega0, and {physics.display_name} has none"
         return reason
 
-    def force(self, physics, x, v, u):
+    def force(self, physics: AbstractPhysics, x, v, u):
         return self.lam * physics.omega0**2 * (x - torch.sin(x))
 
 
@@ -139,7 +140,7 @@ class CoulombFriction(AbstractEffect):
             PhysicalParameter("eps", eps, "m/s", Positive(), "smoothing velocity of the sign"),
         ], learn)
 
-    def force(self, physics, x, v, u):
+    def force(self, physics: AbstractPhysics, x, v, u):
         return -self.Fc * torch.tanh(v / self.eps)
 
 
@@ -153,7 +154,7 @@ class QuadraticDamping(AbstractEffect):
         register_parameters(self, [PhysicalParameter("c2", c2, "1/m", Real(), "quadratic damping",
                                                                physical=(0.0, math.inf))], learn)
 
-    def force(self, physics, x, v, u):
+    def force(self, physics: AbstractPhysics, x, v, u):
         return -self.c2 * v * v.abs()
 
 
@@ -166,7 +167,7 @@ class ConstantForce(AbstractEffect):
         super().__init__()
         register_parameters(self, [PhysicalParameter("f0", f0, "m/s^2", Real(), "constant force")], learn)
 
-    def force(self, physics, x, v, u):
+    def force(self, physics: AbstractPhysics, x, v, u):
         return self.f0 * torch.ones_like(x)
 
 

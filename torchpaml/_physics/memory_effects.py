@@ -21,6 +21,7 @@ import math
 
 import torch
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effect import AbstractEffect, EffectState
 
@@ -92,10 +93,10 @@ class Hysteresis(AbstractEffect):
         limit = 2.0 / step if step > 0 else math.inf
         return {} if limit == math.inf else {"gamma": (-limit, limit), "delta": (-limit, limit)}
 
-    def force(self, physics, x, v, u, z):
+    def force(self, physics: AbstractPhysics, x, v, u, z):
         return -self.k * z[..., 0]
 
-    def state_rate(self, physics, x, z, u):
+    def state_rate(self, physics: AbstractPhysics, x, z, u):
         v, zeta = x[..., 1], z[..., 0]
         return (v - self.gamma * v.abs() * zeta - self.delta * v * zeta.abs())[..., None]
 
@@ -158,11 +159,11 @@ class DynamicFriction(AbstractEffect):
         g = 1 + (self.ratio - 1) * torch.exp(-((v / self.vs) ** 2))
         return v - v.abs() * z / (self.zc * g)
 
-    def force(self, physics, x, v, u, z):
+    def force(self, physics: AbstractPhysics, x, v, u, z):
         deflection = z[..., 0]
         return -self.sigma0 * (deflection + self.tau1 * self._rate(v, deflection))
 
-    def state_rate(self, physics, x, z, u):
+    def state_rate(self, physics: AbstractPhysics, x, z, u):
         return self._rate(x[..., 1], z[..., 0])[..., None]
 
 
@@ -184,7 +185,7 @@ class InputLag(AbstractEffect):
         register_parameters(self, [PhysicalParameter("tau", tau, "s", Real(), "lag time constant",
                                                      physical=(0.0, math.inf))], learn)
 
-    def applies_to(self, physics):
+    def applies_to(self, physics: AbstractPhysics):
         if physics.input_dim != 1:
             return f"input_lag lags a single input; {physics.display_name} has {physics.input_dim}"
         return super().applies_to(physics)
@@ -196,6 +197,6 @@ class InputLag(AbstractEffect):
     def input_map(self, u, z):
         return torch.where(self.tau > 0, z, u)
 
-    def state_rate(self, physics, x, z, u):
+    def state_rate(self, physics: AbstractPhysics, x, z, u):
         on = self.tau > 0
         return torch.where(on, (u - z) / torch.where(on, self.tau, 1.0), 0.0)

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import sympy
 import torch
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._errors import ConfigurationError
 
 __all__ = ["CompiledTerm", "TermLibrary", "compile_term", "state_columns", "variables_of", "width_symbol"]
@@ -39,7 +40,7 @@ _FUNCTIONS: dict[type, Callable[[torch.Tensor], torch.Tensor]] = {
 }
 
 
-def variables_of(physics) -> tuple[tuple[str, ...], dict[str, int]]:
+def variables_of(physics: AbstractPhysics) -> tuple[tuple[str, ...], dict[str, int]]:
     """``(variables, equations)`` of a physics (module docstring): the names a term is written in, and each
     equation's name with the index of the state whose rate it adds to.
 
@@ -48,7 +49,7 @@ def variables_of(physics) -> tuple[tuple[str, ...], dict[str, int]]:
     """
     from torchpaml._physics.base import SecondOrderPhysics
 
-    base = getattr(physics, "base", physics)
+    base = physics.without_effects()
     if isinstance(base, SecondOrderPhysics):
         return ("x", "v", "u"), {"acceleration": 1}
     names = tuple(base.state_names)
@@ -59,7 +60,7 @@ def variables_of(physics) -> tuple[tuple[str, ...], dict[str, int]]:
     return (*names, "u"), {name: i for i, name in enumerate(names)}
 
 
-def state_columns(physics) -> dict[str, int]:
+def state_columns(physics: AbstractPhysics) -> dict[str, int]:
     """Each state variable's column in the state vector: ``{"x": 0, "v": 1}`` for second-order physics, else
     ``{state name: index}``."""
     _, equations = variables_of(physics)
@@ -174,7 +175,7 @@ class TermLibrary:
     roots: bool = True
     terms: tuple[str, ...] = ()
 
-    def build(self, physics) -> list[str]:
+    def build(self, physics: AbstractPhysics) -> list[str]:
         """The library's terms for ``physics`` (canonical sympy text, no duplicates, in a fixed order)."""
         variables, equations = variables_of(physics)
         states = ("v",) if "acceleration" in equations else tuple(v for v in variables if v != "u")

@@ -88,7 +88,7 @@ class ForceAugmented(SecondOrderPhysics):
 
     def __init__(self, physics: SecondOrderPhysics, force: MLPForce):
         super().__init__()
-        base = getattr(physics, "base", physics)  # physics + effects keeps its base's acceleration
+        base = physics.without_effects()  # physics + effects keeps its base's acceleration
         if not isinstance(base, SecondOrderPhysics):
             raise ConfigurationError(f"ForceAugmented needs second-order (mechanical) physics, got {type(physics).__name__}")
         self.physics, self.force = physics, force

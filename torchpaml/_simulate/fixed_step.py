@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._simulate.blowup import checked_output
 from torchpaml._simulate.shooting import base_guess, simulate_shooting
 from torchpaml._simulate.step_control import MAX_SUBSTEPS, simulate_to_tolerance
@@ -19,7 +20,7 @@ if TYPE_CHECKING:
 __all__ = ["simulate_fixed_step"]
 
 
-def simulate_fixed_step(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: FixedStep,
+def simulate_fixed_step(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: FixedStep,
                         warm: WarmStart | None, hold: str, blowup: float, *, most_stable: int = MAX_SUBSTEPS,
                         start: int = 1) -> torch.Tensor:
     """The output (batch, time, n_output) by ``solver`` at its substeps, or to its ``rtol`` (``substeps="auto"``):

@@ -37,7 +37,7 @@ ROW_SAMPLES = 4_000_000
 class _Injected(AbstractPhysics):
     """``physics`` with one more input channel per state, added to that state's rate."""
 
-    def __init__(self, physics):
+    def __init__(self, physics: AbstractPhysics):
         super().__init__()
         self.physics = physics
         self.state_names, self.output_dim = physics.state_names, physics.output_dim

@@ -48,7 +48,7 @@ from torchpaml._simulate.warm import WarmStart
 __all__ = ["output_jacobian", "raw_parameters"]
 
 
-def raw_parameters(physics, names: Sequence[str]) -> dict[str, torch.Tensor]:
+def raw_parameters(physics: AbstractPhysics, names: Sequence[str]) -> dict[str, torch.Tensor]:
     """``{functional_call key: raw tensor}`` for the physical parameters ``names`` (their unconstrained originals)."""
     keys = {id(p): key for key, p in physics.named_parameters()}
     raw = {}
@@ -62,7 +62,7 @@ def raw_parameters(physics, names: Sequence[str]) -> dict[str, torch.Tensor]:
 class _Tail(nn.Module):
     """The differentiable part of a shooting solution and the output map, as a module for ``functional_call``."""
 
-    def __init__(self, physics, solution: ShootingSolution, x0: torch.Tensor, u: torch.Tensor):
+    def __init__(self, physics: AbstractPhysics, solution: ShootingSolution, x0: torch.Tensor, u: torch.Tensor):
         super().__init__()
         self.physics, self.solution, self.x0, self.u = physics, solution, x0, u
 
@@ -73,7 +73,7 @@ class _Tail(nn.Module):
 class _StateSpace(nn.Module):
     """The matrices (A, B, C, D) of linear physics, flattened into one vector (for ``functional_call``)."""
 
-    def __init__(self, physics):
+    def __init__(self, physics: AbstractPhysics):
         super().__init__()
         self.physics = physics
 
@@ -88,7 +88,7 @@ class _StateSpace(nn.Module):
         return [part.reshape(*flat.shape[:-1], *shape) for part, shape in zip(parts, shapes, strict=True)]
 
 
-def _discretised_derivatives(physics, raw: dict[str, torch.Tensor], h: float, hold: str):
+def _discretised_derivatives(physics: AbstractPhysics, raw: dict[str, torch.Tensor], h: float, hold: str):
     r"""$(\Phi, \Gamma_0, \Gamma_1, C, D)$ for the input's ``hold`` and their derivatives in each raw parameter,
     stacked (p, ...).
 
@@ -117,7 +117,7 @@ def _discretised_derivatives(physics, raw: dict[str, torch.Tensor], h: float, ho
     return (Phi, G0, G1, C, D), (dPhi, dGa - dGb, dGb, dC, dD)
 
 
-def _exact_jacobian(physics, raw: dict[str, torch.Tensor], h: float, t: torch.Tensor, u: torch.Tensor,
+def _exact_jacobian(physics: AbstractPhysics, raw: dict[str, torch.Tensor], h: float, t: torch.Tensor, u: torch.Tensor,
                     x0: torch.Tensor, initial_state: bool, hold: str) -> tuple[torch.Tensor, torch.Tensor]:
     """:func:`output_jacobian` on the exact path, by the sensitivity recurrence (module docstring)."""
     with torch.no_grad():

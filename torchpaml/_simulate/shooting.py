@@ -52,6 +52,7 @@ from typing import TYPE_CHECKING
 import torch
 from torch.nn.utils import parametrize
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._errors import ConfigurationError, SimulationError
 from torchpaml._budget import checkpoint
 from torchpaml._grid import check_hold
@@ -133,7 +134,7 @@ class _Layout:
         self._stages[copies] = list(stages)
         return self._stages[copies]
 
-    def sweep(self, physics, starts: torch.Tensor, copies: int = 1) -> torch.Tensor:
+    def sweep(self, physics: AbstractPhysics, starts: torch.Tensor, copies: int = 1) -> torch.Tensor:
         """starts (copies, batch, S, n) -> states (copies, batch, S, L + 1, n), a view of state-major memory."""
         n = starts.shape[-1]
         states = self.solver.sweep(physics, starts.reshape(-1, n), self.stages(copies))
@@ -157,7 +158,8 @@ class _Sweep:
     gradients; otherwise forward differences (n extra rows, error ~1e-7), enough for Newton's G.
     """
 
-    def __init__(self, physics, layout: _Layout, starts: torch.Tensor, scale: torch.Tensor, central: bool):
+    def __init__(self, physics: AbstractPhysics, layout: _Layout, starts: torch.Tensor, scale: torch.Tensor,
+                 central: bool):
         n = starts.shape[-1]
         self.n, self.central = n, central
         self.delta = (PERTURBATION if central else FORWARD_PERTURBATION) * scale
@@ -196,7 +198,7 @@ def _trusted(ends: torch.Tensor, updated: torch.Tensor, scale: torch.Tensor, x0:
     return torch.cat([x0[:, None], following], dim=1)
 
 
-def _newton(physics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: int,
+def _newton(physics: AbstractPhysics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: int,
             differentiable: bool, guess: torch.Tensor | None):
     r"""Newton on the segment starts (module docstring), from ``guess``'s states at the starts if it is finite,
     else from $x_0$ held.
@@ -269,7 +271,7 @@ def _settled(gaps: torch.Tensor, ends: torch.Tensor, tol: float) -> int:
     return 1 + (int(unsettled[0]) if len(unsettled) else len(relative))
 
 
-def linear_guess(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, hold: str = "foh"
+def linear_guess(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, hold: str = "foh"
                  ) -> torch.Tensor | None:
     r"""The states (batch, time, n) of the model's linear base (:meth:`~torchpaml._physics.AbstractPhysics.linear_base`:
     the base of physics + effects, the physics under a learned force), by the exact path, driven by the same
@@ -297,14 +299,15 @@ def _completed(guess: torch.Tensor, x0: torch.Tensor) -> torch.Tensor:
     return torch.cat([guess, held.to(guess)], dim=-1)
 
 
-def base_guess(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, hold: str = "foh") -> torch.Tensor | None:
+def base_guess(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
+               hold: str = "foh") -> torch.Tensor | None:
     """Newton's start without a warm one: :func:`linear_guess` from ``x0`` (batch, n), the states of effects that
     the linear base does not have held at ``x0``; ``None`` without a linear base or a uniform grid."""
     guess = linear_guess(physics, t, u, x0[..., :_linear_states(physics, x0.shape[-1])], hold)
     return None if guess is None else _completed(guess, x0)
 
 
-def _linear_states(physics, n: int) -> int:
+def _linear_states(physics: AbstractPhysics, n: int) -> int:
     """How many of the ``n`` states the linear base has (:func:`linear_guess`): all, unless effects add their own."""
     base = physics.linear_base() if hasattr(physics, "linear_base") else None
     return n if base is None else base.state_dim
@@ -325,7 +328,7 @@ class ShootingSolution:
         """The converged states (batch, N, n), without gradients: a warm start for a nearby solve."""
         return self.layout.assemble(self.centre.detach())
 
-    def states(self, physics, x0: torch.Tensor) -> torch.Tensor:
+    def states(self, physics: AbstractPhysics, x0: torch.Tensor) -> torch.Tensor:
         r"""The record's states (batch, N, n), differentiable through the implicit-function correction.
 
         One sweep from the converged starts gives $x_{s,k}(\theta)$; the scan of the continuity defects
@@ -342,7 +345,7 @@ class ShootingSolution:
 
 
 def solve_shooting(
-    physics,
+    physics: AbstractPhysics,
     t: torch.Tensor,
     u: torch.Tensor,
     x0: torch.Tensor,
@@ -393,7 +396,7 @@ def solve_shooting(
             length = layout.L * GROWTH  # fewer, longer segments; one is plain sequential stepping, which always ends
 
 
-def simulate_shooting(physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: FixedStep,
+def simulate_shooting(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: FixedStep,
                       warm: WarmStart | None = None, **options) -> torch.Tensor:
     r"""States of ``physics`` on the sample grid by ``solver`` (RK4 or TRBDF2 at fixed substeps), parallel in
     time (module docstring).

@@ -31,6 +31,7 @@ from typing import ClassVar, Literal
 
 import torch
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._grid import uniform_step
 from torchpaml._simulate.blowup import checked_output
@@ -56,7 +57,8 @@ class Solver(ABC):
     """Base of the solvers (module docstring): each integrates the physics by its own method."""
 
     @abstractmethod
-    def integrate(self, physics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, *, warm: WarmStart | None,
+    def integrate(self, physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, *,
+                  warm: WarmStart | None,
                   hold: str, knots: torch.Tensor | None, blowup: float) -> torch.Tensor:
         """The output (batch, time, n_output) of ``physics`` from ``x0`` (batch, n_state) driven by ``u`` (batch,
         time, n_input) on the grid ``t`` (time,), checked against ``blowup`` (arguments of
@@ -76,7 +78,7 @@ class Exact(Solver):
     #: One exact step per sample interval.
     substeps: ClassVar[int] = 1
 
-    def integrate(self, physics, t, u, x0, *, warm, hold, knots, blowup):
+    def integrate(self, physics: AbstractPhysics, t, u, x0, *, warm, hold, knots, blowup):
         matrices = physics.state_space()
         if matrices is None:
             raise ConfigurationError(f"solver=Exact() needs linear physics; {physics.display_name} is nonlinear. Use RK4()")
@@ -121,11 +123,11 @@ class FixedStep(Solver):
         return dataclasses.replace(self, substeps=substeps)
 
     @abstractmethod
-    def sweep(self, physics, x: torch.Tensor, stages) -> torch.Tensor:
+    def sweep(self, physics: AbstractPhysics, x: torch.Tensor, stages) -> torch.Tensor:
         """One step of the method per stage, for the rows of ``x`` (rows, n): the states at the step boundaries,
         (n, L + 1, rows) (:mod:`~torchpaml._simulate.steps`)."""
 
-    def integrate(self, physics, t, u, x0, *, warm, hold, knots, blowup):
+    def integrate(self, physics: AbstractPhysics, t, u, x0, *, warm, hold, knots, blowup):
         return simulate_fixed_step(physics, t, u, x0, self, warm, hold, blowup)
 
 
@@ -139,7 +141,7 @@ class RK4(FixedStep):
     coefficients: ClassVar[tuple[float, ...]] = RK4_COEFFICIENTS
     stability: ClassVar[float | None] = RK4_STABILITY
 
-    def sweep(self, physics, x, stages):
+    def sweep(self, physics: AbstractPhysics, x, stages):
         return rk4_sweep(physics, x, stages, self.substeps)
 
 
@@ -163,7 +165,7 @@ class TRBDF2(FixedStep):
     coefficients: ClassVar[tuple[float, ...]] = TRBDF2_COEFFICIENTS
     stability: ClassVar[float | None] = None
 
-    def sweep(self, physics, x, stages):
+    def sweep(self, physics: AbstractPhysics, x, stages):
         return trbdf2_sweep(physics, x, stages, self.substeps)
 
 
@@ -185,7 +187,7 @@ class Dopri5(Solver):
     def __post_init__(self):
         _check_rtol(self.rtol)
 
-    def integrate(self, physics, t, u, x0, *, warm, hold, knots, blowup):
+    def integrate(self, physics: AbstractPhysics, t, u, x0, *, warm, hold, knots, blowup):
         if hold == "zoh":
             raise ConfigurationError("hold='zoh' is simulated by the exact path and by the fixed-step solvers, not by Dopri5, "
                              "whose interpolant is first-order; use solver=RK4() or the default")
@@ -215,7 +217,7 @@ class Auto(Solver):
         own = self.start
         return own.substeps if type(own) is type(method) and own.substeps != "auto" else 1
 
-    def integrate(self, physics, t, u, x0, *, warm, hold, knots, blowup):
+    def integrate(self, physics: AbstractPhysics, t, u, x0, *, warm, hold, knots, blowup):
         if exact_step(physics, t) is not None:
             return Exact().integrate(physics, t, u, x0, warm=warm, hold=hold, knots=knots, blowup=blowup)
         explicit, implicit = RK4(rtol=self.rtol), TRBDF2(rtol=self.rtol)

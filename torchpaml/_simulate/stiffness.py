@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._errors import ResolutionError
 from torchpaml._simulate.step_control import MAX_SUBSTEPS
 
@@ -43,7 +44,7 @@ DIFFERENCE = 1e-7
 RK4_STABILITY = 2.5
 
 
-def stiffness(physics, t: torch.Tensor, u: torch.Tensor, states: torch.Tensor) -> float:
+def stiffness(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, states: torch.Tensor) -> float:
     r"""$\sigma = \max_k h_k\,\rho(J_k)$ (module docstring) over the samples of ``states`` (batch, time, n), driven by
     ``u`` (batch, time, n_input) on the grid ``t`` (time,), at most :data:`POINTS` of them evenly spaced, as its
     :data:`QUANTILE` (a square root at an empty tank is infinitely steep at one sample, which does not make the

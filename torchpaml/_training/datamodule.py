@@ -18,11 +18,11 @@ import lightning as L
 import torch
 from torch.utils.data import DataLoader
 
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._errors import ConfigurationError, DataError
-from torchpaml._data.sources import ExperimentSource
+from torchpaml._data.sources import RecordSource
 
-__all__ = ["ExperimentDataModule", "collate"]
+__all__ = ["RecordDataModule", "collate"]
 
 SPLITS = ("identification", "train", "validation", "test")
 
@@ -45,7 +45,7 @@ def collate(items: list[dict]) -> dict:
     }
 
 
-class ExperimentDataModule(L.LightningDataModule):
+class RecordDataModule(L.LightningDataModule):
     """Experiments for the four roles a two-stage fit needs.
 
     Args:
@@ -62,10 +62,10 @@ class ExperimentDataModule(L.LightningDataModule):
 
     def __init__(
         self,
-        train: ExperimentSource,
-        validation: ExperimentSource | None = None,
-        test: ExperimentSource | None = None,
-        identification: ExperimentSource | None = None,
+        train: RecordSource,
+        validation: RecordSource | None = None,
+        test: RecordSource | None = None,
+        identification: RecordSource | None = None,
         window: float | None = None,
         washout: float = 0.0,
         batch_size: int | None = None,
@@ -75,9 +75,9 @@ class ExperimentDataModule(L.LightningDataModule):
             raise ConfigurationError(f"need window > 0 and washout >= 0, got window={window}, washout={washout}")
         self.sources = {"identification": identification, "train": train, "validation": validation, "test": test}
         self.window, self.washout, self.batch_size = window, washout, batch_size
-        self._records: dict[str, list[Experiment]] = {}
+        self._records: dict[str, list[Record]] = {}
 
-    def records(self, split: str) -> list[Experiment]:
+    def records(self, split: str) -> list[Record]:
         """The experiments of ``split`` (loaded once); empty if the split has no source."""
         if split not in SPLITS:
             raise ConfigurationError(f"unknown split {split!r}; use one of {SPLITS}")
@@ -105,7 +105,7 @@ class ExperimentDataModule(L.LightningDataModule):
                 )
         return items
 
-    def _cuts(self, record: Experiment) -> list[tuple[int, int, int]]:
+    def _cuts(self, record: Record) -> list[tuple[int, int, int]]:
         """(first simulated sample, samples to skip, end) for each window of ``record``."""
         if self.window is None:
             return [(0, 0, len(record.t))]
@@ -113,7 +113,7 @@ class ExperimentDataModule(L.LightningDataModule):
         length, skip = round(self.window / dt), round(self.washout / dt)
         if length + skip > len(record.t):
             raise DataError(
-                f"experiment {record.name!r} lasts {len(record.t) * dt:g} s, shorter than window + washout = "
+                f"record {record.name!r} lasts {len(record.t) * dt:g} s, shorter than window + washout = "
                 f"{self.window + self.washout:g} s; shorten the window or the washout"
             )
         return [(begin - skip, skip, begin + length) for begin in range(skip, len(record.t) - length + 1, length)]

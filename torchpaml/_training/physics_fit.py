@@ -6,7 +6,7 @@ import torch
 from torch import nn
 
 from torchpaml._errors import ConfigurationError
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._fit import fit_physics
 from torchpaml._metrics import mismatch
 from torchpaml._physics.base import AbstractPhysics
@@ -69,7 +69,7 @@ class PhysicsFit(HybridSystem):
         u, y = batch["u"], batch["y"]
         if self.trainer.world_size > 1:
             u, y = (self.all_gather(v).flatten(0, 1) for v in (u, y))
-        fit = fit_physics(self.physics, Experiment.records(batch["t"], u, y), max_nfev=self.max_iter)
+        fit = fit_physics(self.physics, Record.records(batch["t"], u, y), max_nfev=self.max_iter)
         self.physics_solver = fit.solver
         with torch.no_grad():
             y_model = scored(batch, simulate(self.physics, batch["t"], u, solver=fit.solver))

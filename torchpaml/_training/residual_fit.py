@@ -8,7 +8,7 @@ from typing import Literal
 import torch
 from torch import nn
 
-from torchpaml._data import Experiment
+from torchpaml._data import Record
 from torchpaml._errors import DataError
 from torchpaml._fit import fit_physics, reestimate_shift
 from torchpaml._metrics import mismatch
@@ -109,7 +109,7 @@ class ResidualFit(HybridSystem):
                     "the data module identification records to fit the physics on"
                 )
             self.physics.set_learnable(*self.identified_names)
-            fit = fit_physics(self.physics, Experiment.records(batch["t"], batch["u"], batch["y"]), **self._stage1_options())
+            fit = fit_physics(self.physics, Record.records(batch["t"], batch["u"], batch["y"]), **self._stage1_options())
             self.physics_solver = fit.solver
             self.physics.requires_grad_(False)
             if self.logger is not None and self.trainer.is_global_zero:

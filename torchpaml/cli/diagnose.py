@@ -159,7 +159,8 @@ def diagnose_command(
     return json.loads(path.read_text())
 
 
-def diagnose_to_folder(physics, candidates: list, data: str | Path, validation: str | Path, out: str | Path, *,
+def diagnose_to_folder(physics: AbstractPhysics, candidates: list, data: str | Path, validation: str | Path,
+                       out: str | Path, *,
                        hold: str | None = None, **options):
     """Diagnose ``physics`` on the CSV records ``data`` and ``validation`` and write the report into ``out``.
 
@@ -167,11 +168,11 @@ def diagnose_to_folder(physics, candidates: list, data: str | Path, validation: 
     ``torchpaml fleet`` run it. ``hold`` is how the input moved between samples (default: the files' metadata, else
     ``"foh"``); ``options`` go to :func:`~torchpaml.diagnose`.
     """
-    from torchpaml._data import Experiment
+    from torchpaml._data import Record
     from torchpaml._diagnostics.diagnosis import diagnose
     from torchpaml._render.report import write_report
 
-    train, held_out = Experiment.from_csv(data, hold=hold), Experiment.from_csv(validation, hold=hold)
+    train, held_out = Record.from_csv(data, hold=hold), Record.from_csv(validation, hold=hold)
     diagnosis = diagnose(physics, candidates, train, held_out, **options)
     write_report(diagnosis, out)
     return diagnosis

@@ -1,7 +1,7 @@
 """``torchpaml fit|validate|test --config FILE.yaml``: the systems and the data module through ``LightningCLI``.
 
 The model is any :class:`~torchpaml._training.HybridSystem` (``class_path``: ``torchpaml._training.PhysicsFit``,
-``ResidualFit`` or ``JointFit``), the data an :class:`~torchpaml._training.ExperimentDataModule`. Defaults
+``ResidualFit`` or ``JointFit``), the data an :class:`~torchpaml._training.RecordDataModule`. Defaults
 that differ from Lightning's: float64 (``precision: 64-true``), a scalar per step (``log_every_n_steps: 1``:
 full-batch training takes one step per epoch), and a ``last.ckpt`` beside the best checkpoint, to
 resume with ``--ckpt_path``. The resolved config is saved as ``config.yaml`` beside the TensorBoard logs.
@@ -14,7 +14,7 @@ import sys
 from lightning.pytorch.callbacks import ModelCheckpoint
 from lightning.pytorch.cli import LightningCLI
 
-from torchpaml._training.datamodule import ExperimentDataModule
+from torchpaml._training.datamodule import RecordDataModule
 from torchpaml._training.system import HybridSystem
 
 __all__ = ["run_lightning", "trainer_defaults"]
@@ -30,7 +30,7 @@ def run_lightning(args: list[str], prog: str = "torchpaml") -> LightningCLI:
     arguments are left for ``LightningCLI`` to read itself."""
     return LightningCLI(
         HybridSystem,
-        ExperimentDataModule,
+        RecordDataModule,
         subclass_mode_model=True,
         trainer_defaults=trainer_defaults(),
         save_config_kwargs={"overwrite": True},

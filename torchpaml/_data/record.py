@@ -13,13 +13,13 @@ import torch
 from torchpaml._errors import DataError
 from torchpaml._grid import check_hold, uniform_step
 
-__all__ = ["Experiment"]
+__all__ = ["Record"]
 
 _COLUMNS = ("t", "u", "y")
 
 
 @dataclass
-class Experiment:
+class Record:
     """One record of a device: time t (time,) in s, input u (time, n_u), output y (time, n_y), float64.
 
     ``hold`` says how the input moved between samples: ``"foh"`` (linearly, the default) or ``"zoh"``
@@ -33,7 +33,7 @@ class Experiment:
     t: torch.Tensor
     u: torch.Tensor
     y: torch.Tensor
-    name: str = "experiment"
+    name: str = "record"
     metadata: dict = field(default_factory=dict)
     hold: str = "foh"
 
@@ -46,7 +46,7 @@ class Experiment:
 
     def validate(self) -> None:
         """Raise :class:`DataError` naming the problem and its fix."""
-        where = f"experiment {self.name!r}"
+        where = f"record {self.name!r}"
         if len(self.t) == 0:
             raise DataError(f"{where} is empty: it has no samples; check the file or the slicing that made it")
         if not (len(self.t) == len(self.u) == len(self.y)):
@@ -81,7 +81,7 @@ class Experiment:
         try:
             return uniform_step(self.t)
         except DataError as err:
-            raise DataError(f"experiment {self.name!r}: {err}") from None
+            raise DataError(f"record {self.name!r}: {err}") from None
 
     def require_uniform(self, purpose: str) -> float:
         """The sampling interval; a :class:`DataError` that names the gaps and the fix if it is not uniform."""
@@ -92,16 +92,16 @@ class Experiment:
             return usual
         first = int(gaps.nonzero()[0])
         raise DataError(
-            f"experiment {self.name!r} is not uniformly sampled: {int(gaps.sum())} of its {len(steps)} steps differ "
+            f"record {self.name!r} is not uniformly sampled: {int(gaps.sum())} of its {len(steps)} steps differ "
             f"from the usual {usual:.6g} s (from {float(steps.min()):.6g} to {float(steps.max()):.6g} s), the first "
             f"between t = {float(self.t[first]):.6g} and {float(self.t[first + 1]):.6g} s. {purpose} needs uniform "
             "sampling: resample the record onto a uniform grid, or use model_ladder / rank_missing_effects, which "
             "simulate records with missing samples directly"
         )
 
-    def window(self, start: int | None = None, stop: int | None = None, name: str | None = None) -> Experiment:
+    def window(self, start: int | None = None, stop: int | None = None, name: str | None = None) -> Record:
         """Samples ``start:stop`` as an experiment of their own (named ``name``, else this one's), with its hold."""
-        return Experiment(self.t[start:stop], self.u[start:stop], self.y[start:stop], name or self.name, self.metadata,
+        return Record(self.t[start:stop], self.u[start:stop], self.y[start:stop], name or self.name, self.metadata,
                           self.hold)
 
     def batch(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -109,13 +109,13 @@ class Experiment:
         return self.t, self.u[None], self.y[None]
 
     @classmethod
-    def records(cls, t: torch.Tensor, u: torch.Tensor, y: torch.Tensor, name: str = "record") -> list[Experiment]:
+    def records(cls, t: torch.Tensor, u: torch.Tensor, y: torch.Tensor, name: str = "record") -> list[Record]:
         """One experiment per batch row of t (time,), u (batch, time, n_u), y (batch, time, n_y)."""
         return [cls(t, u[i], y[i], f"{name}{i}") for i in range(u.shape[0])]
 
     # -- I/O ---------------------------------------------------------------------------------
     @classmethod
-    def from_csv(cls, path: str | Path, name: str | None = None, hold: str | None = None) -> Experiment:
+    def from_csv(cls, path: str | Path, name: str | None = None, hold: str | None = None) -> Record:
         """Read a CSV with header ``t,u,y`` (extra columns ignored; a first ``# {json}`` line is metadata).
 
         ``hold``: how the input moved between samples; default the metadata's ``"hold"``, else ``"foh"``."""
@@ -167,7 +167,7 @@ class Experiment:
         return path
 
     @classmethod
-    def from_npz(cls, path: str | Path, name: str | None = None, hold: str | None = None) -> Experiment:
+    def from_npz(cls, path: str | Path, name: str | None = None, hold: str | None = None) -> Record:
         """Read arrays ``t``, ``u``, ``y`` (and optional JSON ``metadata``) from an NPZ file; ``hold`` as in
         :meth:`from_csv`."""
         path = Path(path)
