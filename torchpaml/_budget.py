@@ -1,6 +1,6 @@
 r"""A fit's time budget and its progress lines: a long fit never looks like a hang, and never runs away.
 
-A :class:`Budget` is handed to :func:`~torchpaml._fit.fit_physics` (``budget=``), which reports each evaluation
+A :class:`Budget` is handed to :func:`~torchpaml.fit_physics` (``budget=``), which reports each evaluation
 (a simulation with its Jacobian) to :meth:`Budget.check`. Every :data:`PROGRESS_SECONDS` the budget logs a progress
 line (evaluations, the cost $\tfrac12\|r\|^2$ so far, the seconds spent and allowed); past its limit it raises
 :class:`OverBudget`, which ends the fit. The limit is checked between evaluations, so a fit overruns it by at most

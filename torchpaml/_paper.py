@@ -1,11 +1,11 @@
 r"""Reproduction of Kuang & Lin, "Structural Constraints for Physics-augmented Learning", Sec. IV.
 
 True system: the pendulum $\ddot x + 2\zeta\omega_0\dot x + \omega_0^2\sin x = u$, $y = \sin x$
-($\zeta = 0.5$, $\omega_0 = 2$). Physics: its linearisation (:class:`~torchpaml._physics.Oscillator`,
+($\zeta = 0.5$, $\omega_0 = 2$). Physics: its linearisation (:class:`~torchpaml.Oscillator`,
 $\omega_0 = 2$ known, $\zeta$ unknown). For each amplitude $\alpha$ and seed:
 
 1. *physical identification*: $u = \alpha\sin(\omega t)$, $\omega = 1$, $T = 80$ s; $\hat\zeta$ by
-   the output error minimised by :func:`~torchpaml._fit.fit_physics` on $\zeta \in$ ``zeta_bounds``;
+   the output error minimised by :func:`~torchpaml.fit_physics` on $\zeta \in$ ``zeta_bounds``;
 2. *residual identification*: a pseudorandom input (knots every 0.8 s); the Chebyshev-Hammerstein
    residual ($n = 6$, order 5) fitted to $y - \hat y$;
 3. *validation*: a second pseudorandom input drawn independently;

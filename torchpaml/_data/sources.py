@@ -1,7 +1,7 @@
 r"""Where a split's experiments come from: measured files, or a simulated "true system" driven by a signal.
 
 Every source is a small typed object that YAML can spell out (``class_path``/``init_args``) and whose
-:meth:`RecordSource.experiments` returns a list of :class:`~torchpaml._data.Record`.
+:meth:`RecordSource.experiments` returns a list of :class:`~torchpaml.Record`.
 """
 
 from __future__ import annotations

@@ -8,8 +8,8 @@ record, and it also beats the physics on validation. The alarm goes off when eit
 - or its validation mismatch is no better than the physics'.
 The physics is then inadequate in this regime, and the hybrid's number must not be quoted as
 a model's accuracy. The exception is a physics whose residual is noise, by effect size: linearly
-uncorrelated with the input (``residual_white``; :func:`~torchpaml._diagnostics.diagnose` decides it
-from :func:`~torchpaml._diagnostics.residual_analysis`; coloured sensor noise counts as noise), *and*
+uncorrelated with the input (``residual_white``; :func:`~torchpaml.diagnose` decides it
+from :func:`~torchpaml.residual_analysis`; coloured sensor noise counts as noise), *and*
 beyond the reach of the orthogonal residual, which sees odd nonlinear functions of the input too
 ($m_{\text{hybrid}} > $ :data:`NOISE_RATIO` $\, m_{\text{physics}}$ on training). Then there is no gap
 to close, and the verdict says that the physics is complete at that noise level. A residual that the
@@ -23,7 +23,7 @@ missing static effect leaves it linearly uncorrelated with the input (the fitted
 take the best linear approximation), a missing linear dynamic effect does not, since the physics' own
 parameters cannot make its phase. So when the hybrid is adequate and a linear filter of the input explains at
 least :data:`LINEAR_SHARE` of the physics' training residual (``linear_share``, from
-:func:`~torchpaml._diagnostics.residual_analysis`), the verdict says so (``covering``): the residual may be
+:func:`~torchpaml.residual_analysis`), the verdict says so (``covering``): the residual may be
 covering a missing dynamic effect, which the physics should carry (the ``input_lag`` effect tests the commonest).
 """
 

@@ -69,7 +69,7 @@ def fit_closed_form(physics: AbstractPhysics, pairs: list[tuple[str, str]], coef
                     ) -> tuple[torch.nn.Module, PhysicsEstimate] | None:
     """``physics + DiscoveredForce(pairs)`` from ``coefficients`` (widths from twice their lower bound, bounded to
     their ranges) fitted with the physics by output error, and its estimate; ``None`` where it blows up. Past
-    ``budget``, :class:`~torchpaml._budget.OverBudget`. ``solver``: the one ``physics`` was fitted with."""
+    ``budget``, :class:`~torchpaml.OverBudget`. ``solver``: the one ``physics`` was fitted with."""
     terms = [t for _, t in pairs]
     used = sorted({w for t in terms for w in compile_term(t, None).widths})
     effect = DiscoveredForce(terms, coefficients, [e for e, _ in pairs], widths={w: 2 * widths[w][0] for w in used})
@@ -95,7 +95,7 @@ def refit_closed_form(physics: AbstractPhysics, pairs: list[tuple[str, str]], co
     """``physics + DiscoveredForce(pairs)`` refitted and scored, with honest numbers (module docstring, step 3);
     ``None`` when no term survives or it blows up. Each reduced support starts from its own first-order coefficients
     (``first_order``), not from the previous refit's, whose collinear terms carry no information. Every refit shares
-    ``budget`` (:class:`~torchpaml._budget.OverBudget` past it); ``solver``: the one ``physics`` was fitted with."""
+    ``budget`` (:class:`~torchpaml.OverBudget` past it); ``solver``: the one ``physics`` was fitted with."""
     index = state_columns(physics)
     owner = {width_symbol(s): s for s in index}
 

@@ -2,14 +2,14 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
 
 :func:`diagnose` runs, on training and validation records:
 
-1. the **model ladder** (:func:`~torchpaml._diagnostics.model_ladder`): the physics fitted, the
+1. the **model ladder** (:func:`~torchpaml.model_ladder`): the physics fitted, the
    candidates ranked by the ``ranker`` (:class:`~torchpaml.Ranker`), the best added while it
    beats the current model's criterion by more than the threshold;
 2. **where the fitted physics fails** on the validation records: residual whiteness and input
-   cross-correlation (:func:`~torchpaml._diagnostics.residual_analysis`), and the mismatch binned by
-   |u| and by |y| (:func:`~torchpaml._diagnostics.error_by_amplitude`);
+   cross-correlation (:func:`~torchpaml.residual_analysis`), and the mismatch binned by
+   |u| and by |y| (:func:`~torchpaml.error_by_amplitude`);
 3. the **Chebyshev-Hammerstein residual** fitted on top of the first and of the last rung, with the
-   inadequacy alarm (:func:`~torchpaml._diagnostics.assess_adequacy`): on wrong physics it cannot
+   inadequacy alarm (:func:`~torchpaml.assess_adequacy`): on wrong physics it cannot
    close the gap and says so; on physics whose training residual is noise by effect size (its
    cross-correlation with the input below :data:`NOISE_CORRELATION` at all but :data:`WHITE_SHARE`
    of the lags, coloured or not, whatever the record's length, and the orthogonal residual unable to
@@ -17,7 +17,7 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    complete at that noise level. The two residual fits are independent and run in two threads (their
    filtering, in scipy and torch, releases the GIL: 36 s -> 27 s at 100 000 samples, the same numbers);
 4. with ``discovery=Discoverer()``, the **discovery** of a force or rate outside the library on the ladder's
-   last rung (:func:`~torchpaml._diagnostics.discover_missing_force`: a neural rate in the ODE, then its
+   last rung (:func:`~torchpaml.discover_missing_force`: a neural rate in the ODE, then its
    closed form, ranked against the library's best remaining effect), so that it can find a second
    effect on top of a first. It is asked for, not automatic: it trains a
    network through the simulator, so its cost grows with the record's length.
@@ -69,7 +69,7 @@ WHITE_SHARE = 0.05
 #: then explains under 1 % of the residual's variance at that lag. A p-value alone would call any
 #: correlation significant on a long enough record, and coloured sensor noise is not a missing effect.
 NOISE_CORRELATION = 0.1
-#: The residual fits' stopping tolerance (``rtol`` of :func:`~torchpaml._fit.fit_chebyshev_hammerstein`): the
+#: The residual fits' stopping tolerance (``rtol`` of :func:`~torchpaml.fit_chebyshev_hammerstein`): the
 #: verdict needs the hybrid's mismatch to a few digits, not the last ones. Measured on the demo system at 20 000 and
 #: 100 000 samples against the fit's default (1e-9): where the residual has structure (the linear oscillator's), the
 #: unexplained share agrees to eight digits; where it is noise (the complete model), the fit stops after one step,

@@ -17,7 +17,7 @@ __all__ = ["Discoverer"]
 
 @dataclass(frozen=True)
 class Discoverer:
-    """The settings of :func:`~torchpaml._diagnostics.discover_missing_force` (its module docstring has the method).
+    """The settings of :func:`~torchpaml.discover_missing_force` (its module docstring has the method).
 
     Attributes:
         library: the terms to regress on (:class:`~torchpaml.TermLibrary`; ``TermLibrary(terms=[...])`` adds the
@@ -42,7 +42,7 @@ class Discoverer:
 
     def discover(self, ranking: Ranking, train: Sequence[Record], validation: Sequence[Record],
                  deadline: float | None = None) -> Discovery:
-        """:func:`~torchpaml._diagnostics.discover_missing_force` on ``ranking`` (the ladder's last) with these
+        """:func:`~torchpaml.discover_missing_force` on ``ranking`` (the ladder's last) with these
         settings."""
         return discover_missing_force(ranking, train, validation, library=self.library, regression=self.regression,
                                       max_iter=self.max_iter, max_nfev=self.max_nfev, seed=self.seed,

@@ -3,13 +3,13 @@ r"""Discover what is missing outside the library: a neural rate in the ODE, then
 :func:`discover_missing_force` runs on a ranking's baseline (the ladder's last rung): any physics at
 its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x, u)$.
 
-1. **Neural rate** (a universal differential equation, :func:`~torchpaml._fit.fit_neural_force`):
+1. **Neural rate** (a universal differential equation, :func:`~torchpaml.fit_neural_force`):
    $\dot x = f_{\hat\theta} + E\,\mathrm{MLP}(x, u)$, the physics held, fitted by output error. $E$ picks
    the equations a term may enter (:func:`~torchpaml._physics.terms.variables_of`): the acceleration of
    second-order physics, every state's rate otherwise. Its trajectory gives the states that the
    records do not measure.
 2. **Closed form.** Along that trajectory every term $\theta_i$ of the library
-   (:class:`~torchpaml._physics.TermLibrary`) on every equation $e$ is passed through the physics'
+   (:class:`~torchpaml.TermLibrary`) on every equation $e$ is passed through the physics'
    tangent-linear response $\mathcal L_e$ along its own trajectory
    (:func:`~torchpaml._simulate.response.forced_response`; exact for linear physics), so that terms
    are compared by what they do to the output, where the records can tell them apart. The learned
@@ -23,7 +23,7 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
    the extended BIC, which pays for the size of the search) picks the few terms that explain the
    measured residual $y - \hat y_{\text{physics}}$.
 3. **Refit, with honest numbers** (:func:`~torchpaml._diagnostics.closed_form.refit_closed_form`). The
-   closed form becomes a :class:`~torchpaml._physics.DiscoveredForce` refitted with the physics by
+   closed form becomes a :class:`~torchpaml.DiscoveredForce` refitted with the physics by
    output error. A smoothed sign's width is bounded to what the record resolves (:func:`width_range`:
    from the typical change of $s$ over one sample to its RMS), and replaced by its limit at an edge
    (a sign, or a linear term); terms whose standard error exceeds their coefficient, and terms too
@@ -117,12 +117,12 @@ def discover_missing_force(
     """Discover the force or rate missing from the ranking's physics (module docstring).
 
     Args:
-        ranking: a ranking (:func:`~torchpaml._diagnostics.rank_missing_effects`; the ladder's last): its
+        ranking: a ranking (:func:`~torchpaml.rank_missing_effects`; the ladder's last): its
             baseline is the fitted physics to extend, its best refitted physical entry the library's best effect;
             its ``rule`` judges the closed form, and its ``initial_state`` option applies.
         train: the training record(s) the ranking was made on.
         validation: the validation record(s) the ranking was made on.
-        library: the terms to regress on (default :class:`~torchpaml._physics.TermLibrary`: products of degree
+        library: the terms to regress on (default :class:`~torchpaml.TermLibrary`: products of degree
             up to 3, sign-like products, square roots).
         regression: the sparse regression (default :class:`~torchpaml._fit.sparse_regression.SparseRegression`:
             at most 4 terms).

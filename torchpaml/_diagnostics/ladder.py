@@ -1,6 +1,6 @@
 r"""The model ladder: physics -> physics + best effect -> ... until no candidate helps significantly.
 
-Each rung runs the ranker (:class:`~torchpaml.Ranker`, :func:`~torchpaml._diagnostics.rank_missing_effects`) on
+Each rung runs the ranker (:class:`~torchpaml.Ranker`, :func:`~torchpaml.rank_missing_effects`) on
 the current model with the candidates not yet added (and that apply). If it recommends an effect (its criterion beats the current
 model's by more than the threshold, its validation mismatch falls by at least ``min_share``, and its
 parameters are physical), the refitted model, fitted once more to the last digits, becomes the next

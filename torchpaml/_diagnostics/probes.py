@@ -132,7 +132,7 @@ class Secant:
 
     def probes(self, extended: AbstractPhysics, name: str, values: Sequence[float]) -> list[torch.Tensor | None]:
         """The outputs with the strength ``name`` at each of ``values``; ``None`` where its constraint forbids
-        the value or the model blows up at it; raises :class:`~torchpaml._errors.SimulationError` where it blows up
+        the value or the model blows up at it; raises :class:`~torchpaml.SimulationError` where it blows up
         at strength 0."""
         return [self._output_at(extended, name, value) for value in values]
 

@@ -24,7 +24,7 @@ __all__ = ["Ranker"]
 
 @dataclass(frozen=True)
 class Ranker:
-    """The settings of :func:`~torchpaml._diagnostics.rank_missing_effects` that a diagnosis ranks every rung by.
+    """The settings of :func:`~torchpaml.rank_missing_effects` that a diagnosis ranks every rung by.
 
     Attributes:
         rule: the decision rule (:class:`~torchpaml.SelectionRule`: BIC, threshold 10, min_share 5 %).
@@ -56,7 +56,7 @@ class Ranker:
              validation: Sequence[Record], *, initial_state: InitialState = Rest(),
              start_states: Sequence[torch.Tensor] | None = None, deadline: float | None = None,
              solver: Solver | None = None) -> Ranking:
-        """:func:`~torchpaml._diagnostics.rank_missing_effects` with these settings."""
+        """:func:`~torchpaml.rank_missing_effects` with these settings."""
         return rank_missing_effects(physics, candidates, train, validation, rule=self.rule, shortlist=self.shortlist,
                                     initial_state=initial_state, start_states=start_states, probe=self.probe,
                                     max_nfev=self.max_nfev, refit_budget=self.refit_budget, deadline=deadline,

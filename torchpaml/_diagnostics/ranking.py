@@ -1,7 +1,7 @@
 r"""Which effect is missing: rank candidate effects by a first-order score, then by refitted validation error.
 
 1. **Baseline.** The physics' learnable parameters are fitted to the training records
-   (:func:`~torchpaml._fit.fit_physics`), leaving the residual
+   (:func:`~torchpaml.fit_physics`), leaving the residual
    $r = (y - \hat y)/\|y\|$ and the sensitivities $J = \partial r/\partial\rho$ of the physics' own
    parameters.
 2. **First-order score** (the tangent-space idea of Kuang & Lin). Each candidate $c$ is added at
@@ -25,17 +25,17 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
    refit starts from the first-order Gauss-Newton step: the strength $k_1$, and the physics' own
    unknowns moved by $-J^+(r - \beta d_c)$. It stops when a step changes the training criterion by
    less than :data:`REFIT_CRITERION_STEP` (0.1, a hundredth of the threshold). When
-   the best of them has shape parameters (:attr:`~torchpaml._physics.AbstractEffect.shape`: the
+   the best of them has shape parameters (:attr:`~torchpaml.AbstractEffect.shape`: the
    width of Coulomb friction's smoothed sign), it is refitted once more with them freed, and that
    refit is kept when it lowers the criterion by more than ``threshold``: the data asks for another shape.
    A refit whose optimum fails the step check (:mod:`torchpaml._fit.resolution`: its output depends on
    the RK4 step beyond what substeps resolve) has no result; its evidence says why (``failure``).
-4. **Rank** by the information criterion on the validation records (:class:`~torchpaml._diagnostics.SelectionRule`:
+4. **Rank** by the information criterion on the validation records (:class:`~torchpaml.SelectionRule`:
    BIC or AIC). The best candidate is *recommended* when the rule accepts it over the baseline
    (criterion lower by more than ``threshold``, validation mismatch lower by ``min_share``, training
    mismatch not higher) and
    - its refitted parameters lie in their declared physical ranges (``physical`` of
-     :class:`~torchpaml._parameters.PhysicalParameter`: a Coulomb level or a drag coefficient >= 0, a
+     :class:`~torchpaml.PhysicalParameter`: a Coulomb level or a drag coefficient >= 0, a
      share of sin x in [0, 1]). An unphysical refit is flagged in its evidence and passed over.
    Candidates outside the shortlist follow, by score, without a refit.
 """
@@ -91,15 +91,15 @@ def rank_missing_effects(
     Args:
         physics: the physics to diagnose (not modified: a copy is fitted). Its learnable parameters
             are fitted; ``physics + effect`` must work for every candidate.
-        candidates: effects at zero strength, e.g. :func:`~torchpaml._physics.default_effects`; none: the
+        candidates: effects at zero strength, e.g. :func:`~torchpaml.default_effects`; none: the
             fitted baseline alone.
         train: the records to fit on.
         validation: the records to rank on.
-        rule: the decision rule (:class:`~torchpaml._diagnostics.SelectionRule`; default BIC, threshold 10,
+        rule: the decision rule (:class:`~torchpaml.SelectionRule`; default BIC, threshold 10,
             min_share 5 %).
         shortlist: how many of the best-scored candidates are refitted (``len(candidates)``: all).
         initial_state: ``Rest()`` (or ``"rest"``), or ``Estimate()`` (``"estimate"``): every fit estimates each
-            training record's initial state (:func:`~torchpaml._fit.fit_physics`), and each validation record starts
+            training record's initial state (:func:`~torchpaml.fit_physics`), and each validation record starts
             from its best state (:mod:`~torchpaml._fit.initial_state`).
         start_states: with ``Estimate()``, the baseline fit's starting guesses of the training records' initial
             states (default rest).

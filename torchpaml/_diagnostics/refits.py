@@ -63,9 +63,9 @@ def refit_effect(extended: AbstractPhysics, name: str, start: float, train: list
     or blows up the simulation, down to 0. Where that fit ends worse than the baseline on the training
     records (a poor local optimum: the baseline, the effect at 0, fits better), half the move, then a
     quarter (:data:`RESCUE_FRACTIONS`), is tried as the start in the same way, and the better fit is kept.
-    ``ftol``, ``budget`` (shared by every fit tried here; :class:`~torchpaml._budget.OverBudget` ends the
-    refit) and ``bounds`` (the effect's, :meth:`~torchpaml._physics.AbstractEffect.bounds`) go to
-    :func:`~torchpaml._fit.fit_physics`, with ``Auto(start=solver)``: the step check starts where the fit of the
+    ``ftol``, ``budget`` (shared by every fit tried here; :class:`~torchpaml.OverBudget` ends the
+    refit) and ``bounds`` (the effect's, :meth:`~torchpaml.AbstractEffect.bounds`) go to
+    :func:`~torchpaml.fit_physics`, with ``Auto(start=solver)``: the step check starts where the fit of the
     physics under the effect ended (``solver``, default ``baseline.solver``).
     """
     initial_state = as_initial_state(initial_state)
@@ -135,7 +135,7 @@ def _halving_strength(extended: AbstractPhysics, name: str, start: float, fit,
 def _training_mismatch(physics: AbstractPhysics, train: list[Record], states: list[torch.Tensor] | None,
                        warm: list[WarmStart],
                        solver: Solver) -> float:
-    r"""The :func:`~torchpaml._metrics.mismatch` over the training records from ``states`` (or rest), simulated by the
+    r"""The :func:`~torchpaml.mismatch` over the training records from ``states`` (or rest), simulated by the
     solver that a fit with ``solver`` starts from (:func:`~torchpaml._simulate.solvers.engine_solver`; the fit then
     checks its own step); inf if the simulation blows up. Each record's solution is left in its
     :class:`~torchpaml.WarmStart` of ``warm``."""

@@ -33,7 +33,7 @@ def score_model(
     validation.
 
     With ``Estimate()`` each validation record starts from the state that best explains
-    it (:func:`~torchpaml._fit.estimate_initial_state`, the parameters fixed), as MATLAB's ``compare`` does.
+    it (:func:`~torchpaml.estimate_initial_state`, the parameters fixed), as MATLAB's ``compare`` does.
     """
     sse, n, norm = 0.0, 0, 0.0
     starts = [estimate_initial_state(physics, r, solver=continued(fit.solver)) if initial_state.estimated else None

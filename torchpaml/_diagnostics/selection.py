@@ -53,7 +53,7 @@ class SelectionRule:
         return samples * math.log(sse / samples) + penalty
 
     def why_not(self, current, candidate) -> str | None:
-        """Why ``candidate`` is not accepted over ``current`` (both :class:`~torchpaml._diagnostics.ModelScore`),
+        """Why ``candidate`` is not accepted over ``current`` (both :class:`~torchpaml.ModelScore`),
         or ``None`` when it is."""
         if candidate.nrmse_train > current.nrmse_train * (1 + TRAINING_SLACK):
             return "its refit ended above the current model's training mismatch (a failed optimisation)"

@@ -25,7 +25,7 @@ def reestimate_shift(physics: AbstractPhysics, residual, t, u, y, **fit_options)
     ``residual`` is either a module that depends on u alone (``residual(t, u)``, as the
     Chebyshev-Hammerstein model does) or the residual's output r itself, a tensor shaped like y
     (for residuals that also read the physics output, evaluate them at the current $\hat y$).
-    t (time,), u and y (batch, time, ch); ``fit_options`` are those of :func:`~torchpaml._fit.fit_physics`
+    t (time,), u and y (batch, time, ch); ``fit_options`` are those of :func:`~torchpaml.fit_physics`
     (e.g. ``bounds``).
     """
     before = {n: v for n, v in physics.physical_parameters().items() if n in physics.learnable_names()}

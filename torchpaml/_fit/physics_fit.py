@@ -4,7 +4,7 @@ $$ \hat\rho = \arg\min_\rho \tfrac12 \|r(\rho)\|^2, \qquad r = \frac{y - \mathca
 
 over the raw (unconstrained) values $\rho$ of the learnable physical parameters $\theta$, all records
 stacked. ``scipy.optimize.least_squares`` (``method="trf"``) solves it; its Jacobian
-$\partial r/\partial\rho$ comes from :func:`~torchpaml._simulate.output_jacobian` (exact path for linear
+$\partial r/\partial\rho$ comes from :func:`~torchpaml.output_jacobian` (exact path for linear
 physics, the parallel RK4 engine otherwise: one Newton solve and one sweep per parameter).
 
 **Bounds** are the one bound mechanism: ``bounds={name: (lower, upper)}`` in physical units become
@@ -17,7 +17,7 @@ intervals, identifiability; ``physics.describe(estimate.uncertainty)`` prints th
 :class:`~torchpaml._fit.uncertainty.IdentifiabilityWarning` names a combination the records do not determine.
 
 Trial steps whose simulation blows up are rejected by the trust region (their residual is inf);
-a start that blows up raises :class:`~torchpaml._errors.SimulationError`.
+a start that blows up raises :class:`~torchpaml.SimulationError`.
 
 **The step check** (:mod:`torchpaml._fit.resolution`): at the optimum the output must not depend on the
 solver's step; where it does, the substeps grow and the fit goes on from the optimum. With the default
@@ -123,13 +123,13 @@ def fit_physics(
     Args:
         physics: the model; its learnable parameters are fitted, the others stay fixed. With
             ``Estimate()`` it may have none (then only the initial states are fitted).
-        records: one or more :class:`~torchpaml._data.Record`.
+        records: one or more :class:`~torchpaml.Record`.
         bounds: ``{name: (lower, upper)}`` in physical units.
         initial_state: ``Rest()`` (each record starts at rest; or ``"rest"``) or ``Estimate()`` (``"estimate"``:
             each record's initial state is fitted too, an unbounded unknown per state; see
             ``PhysicsEstimate.initial_states``; :mod:`~torchpaml._fit.initial_state`).
         start_states: with ``Estimate()``, each record's starting guess (n_state,), or of
-            the base's states of ``physics + effect`` (:func:`~torchpaml._physics.complete_state`) (default: rest).
+            the base's states of ``physics + effect`` (:func:`~torchpaml.complete_state`) (default: rest).
         warm: one :class:`~torchpaml.WarmStart` per record that carries the RK4 engine's last solution into the
             fit's first Newton solve (``simulate(..., warm=)``, e.g. of a simulation at the start); default fresh ones.
         max_nfev: iteration limit of the trust region.
@@ -139,8 +139,8 @@ def fit_physics(
             ``Auto()``/``None`` (the default): RK4 at one substep (or ``Auto``'s ``start``, a previous fit's
             solver), and TR-BDF2 where RK4 cannot resolve the optimum. The step check raises the substeps where
             the fitted output depends on the step (:mod:`torchpaml._fit.resolution`).
-        budget: a :class:`~torchpaml._budget.Budget`: progress lines while the fit runs, and
-            :class:`~torchpaml._budget.OverBudget` raised past its limit (default: neither).
+        budget: a :class:`~torchpaml.Budget`: progress lines while the fit runs, and
+            :class:`~torchpaml.OverBudget` raised past its limit (default: neither).
     """
     initial_state = as_initial_state(initial_state)
     switch = solver is None or isinstance(solver, Auto)  # may go on with the implicit method

@@ -13,9 +13,9 @@ power of two that fourth order predicts brings $g$ to half the tolerance
 (:func:`~torchpaml._simulate.step_control.next_substeps`, the rule :func:`~torchpaml.simulate`'s own step
 doubling follows), and the fit goes on from its optimum at the finer step, until the check passes.
 
-Beyond :data:`MAX_SUBSTEPS` it raises :class:`~torchpaml._errors.ResolutionError`: a rate of the fitted
+Beyond :data:`MAX_SUBSTEPS` it raises :class:`~torchpaml.ResolutionError`: a rate of the fitted
 model is far faster than the sampling (a spill at 40 1/s in a record sampled every 4 s), and the fit
-settles where RK4's error, not the physics, explains the data. :func:`~torchpaml._fit.fit_physics` with
+settles where RK4's error, not the physics, explains the data. :func:`~torchpaml.fit_physics` with
 its default solver then goes on with the implicit TR-BDF2, which integrates such a rate at one step per
 sample; with a solver the user chose it raises. Records on the exact path (linear physics on a uniform
 grid) have no step error.
@@ -81,7 +81,7 @@ def stable_solver(physics: AbstractPhysics, solver: FixedStep, records: Sequence
                   most_stable: int = MAX_SUBSTEPS) -> FixedStep:
     """``solver`` at the substeps where its step is stable along the trajectory of ``physics``
     (:mod:`~torchpaml._simulate.stiffness`): itself for an implicit method, or where every record takes the exact
-    path. Raises :class:`~torchpaml._errors.ResolutionError` where that needs more than ``most_stable``."""
+    path. Raises :class:`~torchpaml.ResolutionError` where that needs more than ``most_stable``."""
     if not isinstance(solver, RK4):
         return solver
     sigma = max((_stiffness(physics, r, x0, solver) for r, x0 in zip(records, states, strict=True)
@@ -97,7 +97,7 @@ def resolved_solver(physics: AbstractPhysics, solver: FixedStep, records: Sequen
     where it passes; else, where its explicit step is unstable along the fitted trajectory, it at the substeps
     that make it stable (:func:`stable_solver`); else it at the next power-of-two multiple its order predicts to
     pass. ``outputs``: each record's output at ``solver`` where the caller has it (:func:`step_gap`). Raises
-    :class:`~torchpaml._errors.ResolutionError` beyond :data:`MAX_SUBSTEPS`, or where stability alone needs more
+    :class:`~torchpaml.ResolutionError` beyond :data:`MAX_SUBSTEPS`, or where stability alone needs more
     than ``most_stable``."""
     m = solver.substeps
     stable = stable_solver(physics, solver, records, states, most_stable)

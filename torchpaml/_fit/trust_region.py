@@ -1,4 +1,4 @@
-r"""The least-squares problem of :func:`~torchpaml._fit.fit_physics`, as ``scipy.optimize.least_squares`` asks for it.
+r"""The least-squares problem of :func:`~torchpaml.fit_physics`, as ``scipy.optimize.least_squares`` asks for it.
 
 The unknowns $x$ are the raw values $\rho$ of the learnable parameters, then (with ``Estimate()``) each record's
 initial state; the residual is $r = (y - \hat y)/\|y\|$ over all records stacked, and its Jacobian comes from

@@ -126,7 +126,7 @@ class AbstractPhysics(nn.Module):
         return simulate(self, t, u, x0, **options)
 
     def __add__(self, effect):
-        """``physics + effect`` -> :class:`~torchpaml._physics.ComposedModel`; ``TypeError`` where the effect does not apply."""
+        """``physics + effect`` -> :class:`~torchpaml.ComposedModel`; ``TypeError`` where the effect does not apply."""
         from torchpaml._physics.composed import compose
 
         return compose(self, effect)
@@ -168,7 +168,7 @@ class AbstractPhysics(nn.Module):
         r"""Constrain parameter ``name`` to the open interval (lower, upper) from now on; returns ``self``.
 
         The parameter keeps its value and its fixed/learned status; its parametrisation becomes
-        :class:`~torchpaml._parameters.Interval` (gradient-based fits then cannot leave the interval).
+        :class:`~torchpaml.Interval` (gradient-based fits then cannot leave the interval).
         """
         owner, leaf = self._owner(name)
         if leaf not in getattr(owner, "_physical", {}):

@@ -2,7 +2,7 @@
 
 :func:`check_physics` calls ``acceleration`` (second-order physics), ``derivative`` and ``output`` at
 the starting parameters, from the model's initial state, on the first :data:`SAMPLES` samples, and
-raises :class:`~torchpaml._errors.PhysicsError` in one line naming the class and the method:
+raises :class:`~torchpaml.PhysicsError` in one line naming the class and the method:
 
 * an exception inside the method: its type and message (the original traceback is chained, and the
   CLI prints it under ``--verbose``);

@@ -5,11 +5,11 @@ $$ \dot x = f_{\text{base}}(t, x, \tilde u) + \sum_e R_e(x, u) + e_v \sum_e F_e(
 
 with the rates $R_e$ on named state equations, the forces $F_e$ on the velocity equation $e_v$
 (second-order physics only: there $\ddot x = a_{\text{base}} + \sum_e F_e$), the input maps $m_{\text{in}}$ and output maps $m_{\text{out}}$ of the effects applied in the
-order they were added. An effect with its own states $z_e$ (:attr:`~torchpaml._physics.AbstractEffect.own_states`:
+order they were added. An effect with its own states $z_e$ (:attr:`~torchpaml.AbstractEffect.own_states`:
 hysteresis, dynamic friction, a lagged input) appends them to the state vector, $\dot z_e = g_e(x, z_e, u)$,
 after the base's states, named ``effect.state``; its force, rate and maps then read $z_e$ too. A state of the
 base's states alone, wherever one is passed, is completed with the effects' declared initial values
-(:func:`~torchpaml._physics.complete_state`). Parameters keep their names: the base's (``zeta``, ``omega0``, ...) and each
+(:func:`~torchpaml.complete_state`). Parameters keep their names: the base's (``zeta``, ``omega0``, ...) and each
 effect's under its name (``cubic_stiffness.k3``). Composition flattens:
 ``(Oscillator() + CubicStiffness()) + QuadraticDamping()`` is one ``ComposedModel`` with two effects,
 and adding an effect whose name is already present raises ``ValueError``.
@@ -41,7 +41,7 @@ class ComposedModel(AbstractPhysics):
     """``base`` physics with ``effects`` (module docstring). Nonlinear: simulated by the RK4 engine.
 
     Raises ``TypeError`` naming the reason for an effect that does not apply to ``base``
-    (:meth:`~torchpaml._physics.AbstractEffect.applies_to`).
+    (:meth:`~torchpaml.AbstractEffect.applies_to`).
     """
 
     def __init__(self, base: AbstractPhysics, effects: list[AbstractEffect]):

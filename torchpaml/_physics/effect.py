@@ -47,7 +47,7 @@ class AbstractEffect(nn.Module):
     #: the state names the effect's ``rate`` needs in the base physics (checked by :meth:`applies_to`)
     states: tuple[str, ...] = ()
     #: fixed parameters that set the effect's shape (a smoothing width), which the ranking may free
-    #: when the data asks for it (:func:`~torchpaml._diagnostics.rank_missing_effects`)
+    #: when the data asks for it (:func:`~torchpaml.rank_missing_effects`)
     shape: tuple[str, ...] = ()
     #: the effect's own states, appended to the physics' state vector (module docstring of ``composed``)
     own_states: tuple[EffectState, ...] = ()

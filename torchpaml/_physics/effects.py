@@ -31,11 +31,11 @@ saturation) rather than $u_{\max} = \infty$; the physical level $1/s$ is reporte
 A *shape* parameter (``eps``: fixed, listed in :attr:`AbstractEffect.shape`) is freed by the ranking
 when that lowers the criterion by more than its threshold.
 Physical ranges (a refit outside is flagged by the ranking): ``lam`` in [0, 1], ``Fc`` and ``c2`` >= 0.
-The forces apply to :class:`~torchpaml._physics.SecondOrderPhysics`; the saturations and the dead
+The forces apply to :class:`~torchpaml.SecondOrderPhysics`; the saturations and the dead
 zone to any physics.
 
 Writing your own: subclass :class:`AbstractEffect`, give it a ``name`` and parameters through
-:func:`~torchpaml._parameters.register_parameters`, and override any of :meth:`AbstractEffect.force`,
+:func:`~torchpaml.register_parameters`, and override any of :meth:`AbstractEffect.force`,
 :meth:`AbstractEffect.rate` (with ``states`` naming the equations it needs), :meth:`AbstractEffect.input_map`,
 :meth:`AbstractEffect.output_map`. The first declared parameter is the effect's *strength*
 (:attr:`AbstractEffect.strength`): at strength 0 the effect must leave the model unchanged, and

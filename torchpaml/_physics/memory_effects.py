@@ -10,9 +10,9 @@ input_lag            $\tilde u = u_\ell$, $\dot u_\ell = (u - u_\ell)/\tau$ (a f
 
 The forces act on second-order (mechanical) physics, the lag on the input of any single-input physics.
 Each is off at zero strength (k, sigma0, tau = 0), where its state may evolve but does not act, so the
-ranking scores it like any effect (:func:`~torchpaml._diagnostics.rank_missing_effects`). Where a
+ranking scores it like any effect (:func:`~torchpaml.rank_missing_effects`). Where a
 default depends on the record's scale (a hysteretic displacement, a bristle deflection), the effect gives the
-ranking starts scaled to the measured output (:meth:`~torchpaml._physics.AbstractEffect.starts`).
+ranking starts scaled to the measured output (:meth:`~torchpaml.AbstractEffect.starts`).
 """
 
 from __future__ import annotations

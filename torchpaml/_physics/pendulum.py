@@ -15,7 +15,7 @@ class Pendulum(SecondOrderPhysics):
     r"""$\ddot x + 2\zeta\omega_0\dot x + \omega_0^2 \sin x = g\,u$, output $y = \sin x$.
 
     State (batch, 2) = (angle from the lower equilibrium in rad, angular velocity in rad/s). Its
-    small-signal linearisation is :class:`~torchpaml._physics.Oscillator`. A constant torque $u_0$ has
+    small-signal linearisation is :class:`~torchpaml.Oscillator`. A constant torque $u_0$ has
     an equilibrium only for $|g u_0| \le \omega_0^2$; beyond it the pendulum swings over the top.
     """
 

@@ -19,13 +19,13 @@ of a 1 rad/s drive) keeps the optimiser away from overflowing, meaningless poles
 
 *Linear in the numerators.* For fixed poles, $r$ is linear in $(c, d)$: the regressors are the
 states $s^j/D(s)\,[T_{2k+1}]$ of the controllable canonical realisation plus the features
-themselves, which :func:`~torchpaml._fit.fit_chebyshev_hammerstein` exploits (variable projection).
+themselves, which :func:`~torchpaml.fit_chebyshev_hammerstein` exploits (variable projection).
 
 *Orthogonality.* For $u = \alpha\cos(\omega t + \phi)$, $T_{2k+1}(u/\alpha) = \cos((2k+1)(\omega t + \phi))$,
 so at steady state $r$ holds only the odd harmonics $3\omega, 5\omega, \dots$: it is orthogonal to
 any LTI physics output and to its parameter sensitivities (both pure tones at $\omega$).
 
-*Domain.* $|u| > \alpha$ raises :class:`~torchpaml._errors.DomainError` rather than warning: outside
+*Domain.* $|u| > \alpha$ raises :class:`~torchpaml.DomainError` rather than warning: outside
 $[-1, 1]$, $T_{13}$ grows like $(2x)^{13}/2$ (already 140 at $x = 1.2$), so the residual would
 extrapolate wildly and the orthogonality argument (which is about inputs of amplitude $\alpha$)
 would no longer hold. Pick $\alpha \ge \max|u|$.

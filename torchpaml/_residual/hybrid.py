@@ -1,8 +1,8 @@
 r"""A physics model with a learned correction, in either of the two placements.
 
-* output-additive (an :class:`~torchpaml._residual.AbstractResidual`): $y = \mathcal H^\theta[u] + \mathcal R^\gamma[u, \hat y]$;
-* a learned force inside the ODE (an :class:`~torchpaml._residual.MLPForce`): $y$ is the output of
-  :class:`~torchpaml._residual.ForceAugmented` (physics + force), and the implied residual is
+* output-additive (an :class:`~torchpaml.AbstractResidual`): $y = \mathcal H^\theta[u] + \mathcal R^\gamma[u, \hat y]$;
+* a learned force inside the ODE (an :class:`~torchpaml.MLPForce`): $y$ is the output of
+  :class:`~torchpaml.ForceAugmented` (physics + force), and the implied residual is
   $r = y - \mathcal H^\theta[u]$.
 """
 

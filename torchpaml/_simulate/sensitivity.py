@@ -168,14 +168,14 @@ def output_jacobian(
         warm: a :class:`~torchpaml.WarmStart` the caller keeps between calls on the same record (a fit's
             iterations): the RK4 path stores its converged states in it and starts the next Newton solve from them.
         initial_state: also differentiate in ``x0``.
-        hold: ``"foh"`` or ``"zoh"``, how the input moves between samples (:func:`~torchpaml._simulate.simulate`).
+        hold: ``"foh"`` or ``"zoh"``, how the input moves between samples (:func:`~torchpaml.simulate`).
         solver: the solver the model was fitted with (:func:`~torchpaml._simulate.solvers.engine_solver`: RK4 or
             TRBDF2 at whole substeps, else RK4 at one); linear physics on a uniform grid takes the exact path.
 
     Returns:
         y (batch, time, n_output) and J (batch, time, n_output, p), or (..., p + n_state) with
         ``initial_state``: the parameters' columns first. Raises
-        :class:`~torchpaml._errors.SimulationError` if the output blows up.
+        :class:`~torchpaml.SimulationError` if the output blows up.
     """
     x0 = complete_state(physics, x0, u.shape[0]).to(u)
     raw = raw_parameters(physics, names)

@@ -31,7 +31,7 @@ iterate, a training run's previous step: ``warm``), else from the exact trajecto
 linear base (:func:`linear_guess`), else from $x_0$ held. Its sweeps take forward differences (n + 1
 rows per segment) until the defects are small, then central ones (2n + 1). The stage times and inputs
 of every step are laid out once per solve, the states are kept state-major (each state's column
-contiguous: :func:`~torchpaml._physics.state_vector`), and each RK4 stage is one fused ``addcmul``, so an
+contiguous: :func:`~torchpaml.state_vector`), and each RK4 stage is one fused ``addcmul``, so an
 RK4 step costs little more than its four calls of the physics.
 
 **Gradients** (reverse and forward mode) come from the implicit function theorem. With the converged
@@ -213,7 +213,7 @@ def _newton(physics: AbstractPhysics, layout: _Layout, x0: torch.Tensor, tol: fl
 
     A segment that blows up (a non-finite state) from a settled start, one of the first ``sweep`` (exact after
     as many sweeps) or one that every earlier segment's end meets within ``tol`` (:func:`_settled`), is the
-    solution's own blow-up: it raises :class:`~torchpaml._errors.SimulationError` at once. Where the
+    solution's own blow-up: it raises :class:`~torchpaml.SimulationError` at once. Where the
     parameters are unstable, Newton settles the record up to the blow-up in a few sweeps; lengthening the
     segments instead (:data:`GROWTH`) would end in sequential stepping through the whole record first
     (a ranking's trial step on 10^6 samples, one thread: 424 s that way, 1.9 s from the settled starts).
@@ -273,7 +273,7 @@ def _settled(gaps: torch.Tensor, ends: torch.Tensor, tol: float) -> int:
 
 def linear_guess(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, hold: str = "foh"
                  ) -> torch.Tensor | None:
-    r"""The states (batch, time, n) of the model's linear base (:meth:`~torchpaml._physics.AbstractPhysics.linear_base`:
+    r"""The states (batch, time, n) of the model's linear base (:meth:`~torchpaml.AbstractPhysics.linear_base`:
     the base of physics + effects, the physics under a learned force), by the exact path, driven by the same
     input; ``None`` where there is no linear base or the grid is not uniform.
 
@@ -402,7 +402,7 @@ def simulate_shooting(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor
     time (module docstring).
 
     Args:
-        physics: an :class:`~torchpaml._physics.AbstractPhysics`; ``derivative(t, x, u)`` is called with
+        physics: an :class:`~torchpaml.AbstractPhysics`; ``derivative(t, x, u)`` is called with
             t of shape (rows,), x (rows, n_state), u (rows, n_input).
         t: sample times, (time,), strictly increasing (uniform or not).
         u: input samples, (batch, time, n_input).

@@ -29,18 +29,18 @@ def simulate(
     r"""Simulate $y = \mathcal H^\theta[u]$ for the input through the samples, held as ``hold`` says.
 
     Args:
-        physics: an :class:`~torchpaml._physics.AbstractPhysics`.
+        physics: an :class:`~torchpaml.AbstractPhysics`.
         t: sample times in s, shape (time,), shared by the batch.
         u: input samples, shape (batch, time, n_input), float64.
         x0: initial state (batch, n_state), or of the base's states only (``physics + effect``: the effects' own
-            states then start at their declared values, :func:`~torchpaml._physics.complete_state`); rest if omitted.
+            states then start at their declared values, :func:`~torchpaml.complete_state`); rest if omitted.
         solver: how to integrate (:mod:`~torchpaml._simulate.solvers`): :class:`~torchpaml.Auto` (the default:
             exact for linear physics on a uniform grid, else RK4 to ``rtol``, else, for stiff physics, TR-BDF2),
             :class:`~torchpaml.Exact`, :class:`~torchpaml.RK4`, :class:`~torchpaml.TRBDF2` or
             :class:`~torchpaml.Dopri5`. A fixed-step solver with ``substeps="auto"`` doubles its substeps until
             halving the step moves the output by at most ``rtol`` of its size
             (:func:`~torchpaml._simulate.step_control.simulate_to_tolerance`), and raises
-            :class:`~torchpaml._errors.ResolutionError` when that takes more than 64. A fit's
+            :class:`~torchpaml.ResolutionError` when that takes more than 64. A fit's
             ``PhysicsEstimate.solver`` simulates the fitted model as it was fitted.
         warm: a :class:`~torchpaml.WarmStart` kept by the caller between simulations of the same record
             (RK4, TR-BDF2): Newton starts from the states the previous one stored there. The result does not

@@ -14,12 +14,12 @@ same estimate:
 * :func:`~torchpaml.simulate` with ``substeps="auto"`` (``RK4()``, ``TRBDF2()``, the default ``Auto()``)
   doubles until $g_m \le$ ``rtol`` and returns $\hat y_{2m}$
   (:func:`simulate_to_tolerance`);
-* :func:`~torchpaml._fit.fit_physics` checks its fitted output against its misfit
+* :func:`~torchpaml.fit_physics` checks its fitted output against its misfit
   (:mod:`~torchpaml._fit.resolution`).
 
 Both grow $m$ by the power of two that the method's order predicts brings $g$ to half the target
 (:func:`next_substeps`), and both stop at :data:`MAX_SUBSTEPS` with
-:class:`~torchpaml._errors.ResolutionError`.
+:class:`~torchpaml.ResolutionError`.
 """
 
 from __future__ import annotations
@@ -56,9 +56,9 @@ def simulate_to_tolerance(run: Callable[[int], torch.Tensor], start: int, rtol: 
 
     ``run(m)`` returns the output at ``m`` substeps; the checks run without gradients, and the accepted output is
     simulated once more with them when grad mode is on. A first simulation that blows up
-    (:class:`~torchpaml._errors.SimulationError`: a rate too fast for the step) is tried again at twice the substeps.
+    (:class:`~torchpaml.SimulationError`: a rate too fast for the step) is tried again at twice the substeps.
     ``order`` is the method's order (:func:`next_substeps`); ``step`` (the sample interval, s) and ``method`` (its
-    name) go into the :class:`~torchpaml._errors.ResolutionError` raised when $2m$ would pass :data:`MAX_SUBSTEPS`.
+    name) go into the :class:`~torchpaml.ResolutionError` raised when $2m$ would pass :data:`MAX_SUBSTEPS`.
     """
     if not rtol > 0:
         raise ConfigurationError(f"rtol must be positive, got {rtol}")

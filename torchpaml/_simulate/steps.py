@@ -5,7 +5,7 @@ knows no solver class.
 
 A sweep integrates rows of states through the steps of a segment (:class:`~torchpaml._simulate.shooting`'s
 layout). The states are kept state-major (each state's column contiguous, see
-:func:`~torchpaml._physics.state_vector`). Each step has its stage times and inputs at the fractions
+:func:`~torchpaml.state_vector`). Each step has its stage times and inputs at the fractions
 $j/m$ and $(j + c)/m$ of the sample interval ($m$ substeps, $c$ the method's ``middle``), laid out once
 per solve, and its step coefficients.
 

@@ -69,7 +69,7 @@ def stiffness(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, states
 def stable_substeps(solver: FixedStep, sigma: float, most: int = MAX_SUBSTEPS) -> int:
     """The substeps of ``solver`` (whole) or the least power-of-two multiple of them at which its step is stable
     for stiffness ``sigma``; the substeps themselves for an implicit method. Raises
-    :class:`~torchpaml._errors.ResolutionError` where that is more than ``most``: the physics is stiff for the
+    :class:`~torchpaml.ResolutionError` where that is more than ``most``: the physics is stiff for the
     method (the default solver then takes TR-BDF2 beyond :data:`STIFF_SUBSTEPS`)."""
     m = solver.substeps
     limit = solver.stability

@@ -1,4 +1,4 @@
-"""Stage 1 as a Lightning system: a thin wrapper that calls :func:`~torchpaml._fit.fit_physics` on the training records."""
+"""Stage 1 as a Lightning system: a thin wrapper that calls :func:`~torchpaml.fit_physics` on the training records."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ __all__ = ["PhysicsFit"]
 class PhysicsFit(HybridSystem):
     r"""Fit the learnable parameters of ``physics`` to the training records: $\min_\theta \|y - \mathcal H^\theta[u]\|^2$.
 
-    Each training step runs :func:`~torchpaml._fit.fit_physics` (trust region, the one physics fit)
+    Each training step runs :func:`~torchpaml.fit_physics` (trust region, the one physics fit)
     on the whole records of the batch, from the current parameters; under DDP the records of every
     process are gathered first, so every rank fits the same problem. A later epoch restarts the fit
     where the last one ended (it stops at once if that was the optimum).
@@ -28,7 +28,7 @@ class PhysicsFit(HybridSystem):
     Args:
         physics: the physics, with the parameters to identify marked learnable.
         bounds: ``{name: [lower, upper]}``, open intervals the named parameters are kept in
-            (:meth:`~torchpaml._physics.AbstractPhysics.bound`), e.g. the paper's ζ in (0.001, 5).
+            (:meth:`~torchpaml.AbstractPhysics.bound`), e.g. the paper's ζ in (0.001, 5).
         optimizer: unused (``fit_physics`` is the optimiser); accepted so that every system's config has the same keys.
         lr: unused, as ``optimizer``.
         lr_decay: unused, as ``optimizer``.

@@ -31,7 +31,7 @@ class ResidualFit(HybridSystem):
 
     The physics comes from ``physics_checkpoint`` (a :class:`PhysicsFit` checkpoint) or, without
     one, is fitted at the start of the run on the data module's ``identification`` records by
-    :func:`~torchpaml._fit.fit_physics`, the one physics fit. Its learnable
+    :func:`~torchpaml.fit_physics`, the one physics fit. Its learnable
     parameters are the ones identified; after stage 1 they are frozen.
 
     The Chebyshev-Hammerstein residual is fitted by variable projection (L-BFGS over its poles,
@@ -140,7 +140,7 @@ class ResidualFit(HybridSystem):
         return scalars
 
     def adequacy(self):
-        """The inadequacy alarm (:func:`~torchpaml._diagnostics.assess_adequacy`) on the whole training and
+        """The inadequacy alarm (:func:`~torchpaml.assess_adequacy`) on the whole training and
         validation records: physics alone against physics + the orthogonal residual."""
         from torchpaml._diagnostics.adequacy import assess_adequacy
 

@@ -222,7 +222,7 @@ class HybridSystem(L.LightningModule):
     def record_mismatches(self, records: list) -> tuple[float, float]:
         r"""Mismatch (fraction) of the physics alone and of the stage's model over whole records.
 
-        $\sqrt{\sum_i \|y_i - \hat y_i\|^2 / \sum_i \|y_i\|^2}$ over :class:`~torchpaml._data.Record`
+        $\sqrt{\sum_i \|y_i - \hat y_i\|^2 / \sum_i \|y_i\|^2}$ over :class:`~torchpaml.Record`
         records, each simulated from rest in full.
         """
         errors, energy = [0.0, 0.0], 0.0

@@ -1,7 +1,7 @@
 """``torchpaml fit|validate|test --config FILE.yaml``: the systems and the data module through ``LightningCLI``.
 
-The model is any :class:`~torchpaml._training.HybridSystem` (``class_path``: ``torchpaml._training.PhysicsFit``,
-``ResidualFit`` or ``JointFit``), the data an :class:`~torchpaml._training.RecordDataModule`. Defaults
+The model is any :class:`~torchpaml.HybridSystem` (``class_path``: ``torchpaml.PhysicsFit``,
+``ResidualFit`` or ``JointFit``), the data an :class:`~torchpaml.RecordDataModule`. Defaults
 that differ from Lightning's: float64 (``precision: 64-true``), a scalar per step (``log_every_n_steps: 1``:
 full-batch training takes one step per epoch), and a ``last.ckpt`` beside the best checkpoint, to
 resume with ``--ckpt_path``. The resolved config is saved as ``config.yaml`` beside the TensorBoard logs.
