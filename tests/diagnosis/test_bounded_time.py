@@ -13,6 +13,7 @@ import torch
 from experiment_modules import load
 
 from torchpaml import (
+    Discoverer,
     Pendulum,
     Simulated,
     build_model,
@@ -50,7 +51,7 @@ def test_a_pendulum_with_a_force_outside_the_library_is_diagnosed_and_its_form_d
     truth = Pendulum(zeta=0.2, omega0=2.0, gain=2.0, learn=()) + forces.CubicDamping(0.5)
     train, validation = records(truth, 4001)
     diagnosis = diagnose(Pendulum(zeta=0.4, omega0=1.6, gain=1.5, learn=("zeta", "omega0", "gain")),
-                         default_effects(), train, validation, discover=True)
+                         default_effects(), train, validation, discovery=Discoverer())
     every_candidate_says_why(diagnosis)
     found = discovery_to_dict(diagnosis.discovery)
     final = found["nrmse_validation"]["discovered"]

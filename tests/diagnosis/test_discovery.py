@@ -14,6 +14,7 @@ from experiment_modules import load
 
 from torchpaml import (
     AbstractEffect,
+    Discoverer,
     AbstractPhysics,
     CoulombFriction,
     CubicStiffness,
@@ -22,6 +23,7 @@ from torchpaml import (
     Positive,
     Real,
     SecondOrderPhysics,
+    Ranker,
     SelectionRule,
     SparseRegression,
     TermLibrary,
@@ -134,7 +136,7 @@ def test_on_the_physics_alone_nothing_is_recommended():
 def test_a_shape_the_data_asks_for_is_freed_and_the_ladder_stops_there():
     """Coulomb friction with tanh(v/0.05), not the library's 0.01: eps is freed, and no spurious rung follows."""
     train, validation, floor = run.records(run.truth(CoulombFriction(0.5, eps=0.05)))
-    ladder = model_ladder(run.physics(), default_effects(), train, validation, shortlist=2)
+    ladder = model_ladder(run.physics(), default_effects(), train, validation, ranker=Ranker(shortlist=2))
     assert ladder.added == ["coulomb_friction"], ranking_table(ladder.rankings[-1])
     assert ladder.final.parameters["coulomb_friction.eps"] == pytest.approx(0.05, rel=0.25)
     assert ladder.final.parameters["coulomb_friction.Fc"] == pytest.approx(0.5, rel=0.1)
@@ -247,7 +249,7 @@ def test_on_a_ladder_discovery_finds_a_second_effect_on_top_of_a_first():
     the second."""
     truth = run.truth(CubicStiffness(1.0)) + forces.ForceFactor(0.5)
     train, validation, floor = run.records(truth)
-    diagnosis = diagnose(run.physics(), default_effects(), train, validation, discover=True)
+    diagnosis = diagnose(run.physics(), default_effects(), train, validation, discovery=Discoverer())
     assert "cubic_stiffness" in diagnosis.ladder.added, diagnosis.verdict
     content = discovery_to_dict(diagnosis.discovery)
     terms = {t["term"]: t["coefficient"] for t in content["terms"]}

@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from experiment_modules import load
-from torchpaml import diagnose, Record, mismatch, pseudorandom, time_grid
+from torchpaml import Estimate, Ranker, Record, diagnose, mismatch, pseudorandom, time_grid
 
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 
@@ -36,7 +36,7 @@ def test_the_hidden_sqrt_outflow_is_found_and_brings_the_error_to_the_noise_floo
     validation, floor = record(truth, seed=1, noise=0.01)
     physics = tanks.TwoTanks(0.03, 0.01, 0.015, 0.03, learn=("k1", "k3", "k4"))
     candidates = [tanks.TorricelliOutflow(tank="upper"), tanks.TorricelliOutflow(tank="lower"), tanks.SensorClip()]
-    diagnosis = diagnose(physics, candidates, train, validation, initial_state="estimate", shortlist=2)
+    diagnosis = diagnose(physics, candidates, train, validation, initial_state=Estimate(), ranker=Ranker(shortlist=2))
     assert diagnosis.ladder.added[0] == "sqrt_outflow_lower"
     final = diagnosis.ladder.final
     assert final.nrmse_validation < 1.5 * floor < diagnosis.baseline.nrmse_validation

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from experiment_modules import load
-from torchpaml import Record, diagnose, discovery_to_dict, fit_physics, simulate_record
+from torchpaml import Discoverer, Estimate, Record, diagnose, discovery_to_dict, fit_physics, simulate_record
 
 silverbox = load("silverbox/run.py")
 cascaded = load("cascaded_tanks/run.py")
@@ -50,7 +50,7 @@ def test_silverbox_discovery_writes_the_cubic_spring_in_closed_form():
     """Discovery alone on the linear physics (``run.py --discover``'s step) holds x**3 and reaches 1.0 mV on
     test_multisine."""
     train, validation = silverbox.split(Record.from_csv(silverbox.DATA / "train_multisine.csv"))
-    found = diagnose(silverbox.frequency_response_start(train), [], train, validation, discover=True).discovery
+    found = diagnose(silverbox.frequency_response_start(train), [], train, validation, discovery=Discoverer()).discovery
     content = discovery_to_dict(found)
     terms = {t["term"]: t for t in content["terms"]}
     assert "x**3" in terms and terms["x**3"]["coefficient"] < 0, content["expression"]  # a hardening spring
@@ -72,7 +72,7 @@ def tanks_discovery(threads: int) -> tuple[dict, float]:
     before = torch.get_num_threads()
     torch.set_num_threads(threads)
     try:
-        found = diagnose(physics, [], train, validation, initial_state="estimate", discover=True).discovery
+        found = diagnose(physics, [], train, validation, initial_state=Estimate(), discovery=Discoverer()).discovery
     finally:
         torch.set_num_threads(before)
     model = found.discovered

@@ -10,7 +10,7 @@ from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
 from torchpaml._diagnostics.results import ModelScore
 from torchpaml._diagnostics.selection import SelectionRule
-from torchpaml._fit.initial_state import InitialState, Rest
+from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._simulate.solvers import continued
@@ -27,7 +27,7 @@ def score_model(
     fit: PhysicsEstimate,
     validation: Sequence[Record],
     rule: SelectionRule | None = None,
-    initial_state: InitialState = Rest(),
+    initial_state: str | InitialState = Rest(),
 ) -> ModelScore:
     """The fitted ``physics``' mismatch on training (from ``fit``) and validation, and ``rule``'s criterion on
     validation.
@@ -35,6 +35,7 @@ def score_model(
     With ``Estimate()`` each validation record starts from the state that best explains
     it (:func:`~torchpaml.estimate_initial_state`, the parameters fixed), as MATLAB's ``compare`` does.
     """
+    initial_state = as_initial_state(initial_state)
     sse, n, norm = 0.0, 0, 0.0
     starts = [estimate_initial_state(physics, r, solver=continued(fit.solver)) if initial_state.estimated else None
               for r in validation]
