@@ -2,7 +2,7 @@
 PYTHON ?= python3
 DEMO ?= results/demo
 
-.PHONY: install install-docs install-fleet demo fleet paper test test-all test-experiments docs tables bench contrast silverbox tanks boucwen discovery
+.PHONY: install install-docs install-fleet demo fleet paper test test-all test-experiments docs tables bench contrast silverbox tanks boucwen emps discovery leaderboard
 
 install:
 	# torch==2.13.0 first: a CPU build; a bare `torch` requirement would pull a multi-GB CUDA build.
@@ -48,7 +48,7 @@ docs: install-docs
 
 # The docs' result tables, rewritten from the experiments' JSON under results/ (run the experiments first).
 tables: install
-	$(PYTHON) benchmarks/tables.py --results results --write docs/benchmarks.md docs/tutorials/*.md docs/how-to/*.md
+	$(PYTHON) benchmarks/tables.py --results results --write docs/benchmarks.md docs/tutorials/*.md docs/tutorials/*.md docs/how-to/*.md
 
 bench: install-fleet
 	$(PYTHON) benchmarks/bench_simulation.py
@@ -82,3 +82,15 @@ tanks: install
 
 boucwen: install
 	$(PYTHON) experiments/boucwen/run.py --out results/boucwen
+
+emps: install
+	$(PYTHON) experiments/emps/run.py --out results/emps
+
+# The leaderboard: the four measured benchmarks on their protocols (each writes results/<name>/<name>.json), then the
+# benchmarks page's tables, the leaderboard among them, from those files.
+leaderboard: install
+	$(PYTHON) experiments/silverbox/run.py --out results/silverbox --discover
+	$(PYTHON) experiments/cascaded_tanks/run.py --out results/cascaded_tanks --discover
+	$(PYTHON) experiments/emps/run.py --out results/emps
+	$(PYTHON) experiments/boucwen/run.py --out results/boucwen
+	$(PYTHON) benchmarks/tables.py --results results --write docs/benchmarks.md docs/tutorials/*.md

@@ -4,9 +4,9 @@
 
 Reads what the experiments wrote under ``--results`` (``demo/diagnosis.json``,
 ``paper/results.json``, ``contrast/contrast.json``, ``discovery/discovery_cases.json``,
-``silverbox/silverbox.json``, ``cascaded_tanks/cascaded_tanks.json``, ``boucwen/boucwen.json``, and the worst-case
-benchmark's ``bench_worst_case.json``) and prints one markdown table
-per file found. With ``--write PAGE ...`` it replaces, in each page, the text between
+``silverbox/silverbox.json``, ``cascaded_tanks/cascaded_tanks.json``, ``boucwen/boucwen.json``, ``emps/emps.json``,
+and the worst-case benchmark's ``bench_worst_case.json``) and prints one markdown table
+per file found, and the leaderboard (:func:`leaderboard`) from the four benchmarks' files. With ``--write PAGE ...`` it replaces, in each page, the text between
 ``<!-- table:NAME -->`` and ``<!-- /table:NAME -->`` by the table NAME, and leaves the tables whose JSON
 is missing as they are. ``make tables`` writes every page of the docs that holds such markers.
 """
@@ -115,6 +115,53 @@ def worst_case(report: dict) -> str:
     return "\n".join(lines)
 
 
+#: The published figures the leaderboard sets ours beside, per benchmark: its headline test split, the best
+#: published black box and grey box (value, who, where), and the goal. Quoted from the literature, not computed.
+PUBLISHED = {
+    "silverbox": {"split": "test_multisine", "black": ("0.31–0.33 mV", "GRU, 3 seeds", "tsfast workshop 2025"),
+                  "grey": ("—", "none found", ""), "goal": "≤ 0.30 mV"},
+    "cascaded_tanks": {"split": "test", "black": ("0.30 V", "CT-SUBNET, median", ""),
+                       "grey": ("0.18 V", "Rogers, Holmes, Cross, Worden", "2017"), "goal": "≤ 0.18 V"},
+    "emps": {"split": "test", "black": ("2.64 mm", "dynoNet", "Forgione & Piga"),
+             "grey": ("—", "none found", ""), "goal": "≤ 1.5 mm"},
+    "boucwen": {"split": "test_multisine", "black": ("1.87e-5 m", "PNLSS with hysteresis decoupling", ""),
+                "grey": ("—", "none found", ""), "goal": "≤ 4.5e-6 m"},
+}
+#: The leaderboard's JSON files under ``--results``, by benchmark.
+LEADERBOARD = {"silverbox": "silverbox/silverbox.json", "cascaded_tanks": "cascaded_tanks/cascaded_tanks.json",
+               "emps": "emps/emps.json", "boucwen": "boucwen/boucwen.json"}
+
+
+def _figure(value: float | None, unit: str) -> str:
+    if value is None:
+        return "—"
+    return f"{value:.2e} {unit}" if value < 1e-3 else f"{value:.3g} {unit}"
+
+
+def leaderboard(results: Path) -> str | None:
+    """One row per benchmark whose JSON is under ``results`` (``make leaderboard``): the linear physics, the final grey
+    box, the grey box with the orthogonal residual (and whether its alarm accepts it), and the published best."""
+    lines = ["| benchmark (split) | linear physics | final grey box | + orthogonal residual | best published black box "
+             "| best published grey box | goal |", "|---|---|---|---|---|---|---|"]
+    rows = 0
+    for name, path in LEADERBOARD.items():
+        if not (results / path).is_file():
+            continue
+        data, published = json.loads((results / path).read_text()), PUBLISHED[name]
+        split, unit = published["split"], data["protocol"]["unit"]
+        hybrid = data["hybrid"]
+        verdict = "accepted" if hybrid["accepted"] else "alarm: not quoted as accuracy"
+        if hybrid["rmse"][split] is None:
+            verdict = "the test input leaves the residual's domain; " + verdict
+        black, grey = published["black"], published["grey"]
+        lines.append(f"| {name} ({split}) | {_figure(data['models'][0]['rmse'][split], unit)} "
+                     f"| {_figure(data['models'][-1]['rmse'][split], unit)} ({data['models'][-1]['model']}) "
+                     f"| {_figure(hybrid['rmse'][split], unit)} ({verdict}) | {black[0]} ({black[1]}{'; ' + black[2] if black[2] else ''}) "
+                     f"| {grey[0]} ({grey[1]}{'; ' + grey[2] if grey[2] else ''}) | {published['goal']} |")
+        rows += 1
+    return "\n".join(lines) if rows else None
+
+
 TABLES: dict[str, tuple[str, Callable]] = {
     "demo": ("demo/diagnosis.json", demo),
     "paper": ("paper/results.json", paper_table),
@@ -133,6 +180,9 @@ def tables(results: Path) -> dict[str, str]:
     for name, (path, render) in TABLES.items():
         if (results / path).is_file():
             found[name] = render(json.loads((results / path).read_text()))
+    board = leaderboard(results)
+    if board is not None:
+        found["leaderboard"] = board
     return found
 
 

@@ -21,8 +21,11 @@ Writes ``DIR/boucwen.json``::
     {"found": [effects added, in order],
      "models": [{"model", "equation", "parameters", "uncertainty", "substeps",
                  "rmse": {"test_multisine": m, "test_sinesweep": m}}],   # the linear physics first, final model last
-     "hybrid": [the Chebyshev residual on the first and last rung, on validation, with the alarm],
+     "hybrids": [the Chebyshev residual on the first and last rung, on validation, with the alarm],
      "seconds": wall time}
+
+plus the leaderboard's fields (``schema_version``, ``benchmark``, ``protocol``, ``hybrid``: the final model with the
+orthogonal residual on the test records, :mod:`leaderboard`)
 
 and the diagnosis folder ``DIR/diagnosis/`` (report.html, figures/, tensorboard/, diagnosis.json).
 """
@@ -37,9 +40,13 @@ from pathlib import Path
 
 import torch
 
-from torchpaml import Estimate, Ranker, Solver, default_effects, diagnose, diagnosis_to_dict, Record, simulate_record, write_report
+from torchpaml.cli.progress import progress_lines  # noqa: E402
+from torchpaml import (Estimate, Ranker, Record, Solver, default_effects, diagnose, diagnosis_to_dict, simulate_record,
+                       write_report)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
+from leaderboard import SCHEMA_VERSION, hybrid_entry, protocol  # noqa: E402
 from mass_spring_damper import frequency_response_start  # noqa: E402  (the user's physics, beside this script)
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "boucwen"
@@ -47,13 +54,25 @@ TRAIN = "train_multisine_forgione"
 TESTS = ("test_multisine", "test_sinesweep")
 
 
+def twice(record: Record) -> Record:
+    """One period of a periodic record, applied twice (its output repeated): the second is the steady state."""
+    n = len(record.t)
+    return Record(torch.cat([record.t, record.t + n * record.dt]), torch.cat([record.u, record.u]),
+                  torch.cat([record.y, record.y]), name=record.name)
+
+
 def steady_state_error(model, record: Record, solver: Solver | None = None) -> torch.Tensor:
     """The error (time,) of a fitted model on one period of a periodic record, in the steady state: the period's input
     applied twice from rest, the second period compared; ``solver``: the one its fit resolved."""
     n = len(record.t)
-    twice = Record(torch.cat([record.t, record.t + n * record.dt]), torch.cat([record.u, record.u]),
-                       torch.cat([record.y, record.y]), name=record.name)
-    return (record.y - simulate_record(model, twice, solver=solver)[0][n:])[:, 0]
+    return (record.y - simulate_record(model, twice(record), solver=solver)[0][n:])[:, 0]
+
+
+def scored_rmse(record: Record, y_model: torch.Tensor) -> float:
+    """The metric on a record as :func:`test_rmse` simulates it: on ``test_multisine`` applied twice, its second
+    period (the steady state); on ``test_sinesweep``, every sample."""
+    first = len(record.t) // 2 if record.name == "test_multisine" else 0
+    return float((record.y - y_model)[first:, 0].square().mean().sqrt())
 
 
 def test_rmse(model, tests: dict[str, Record], solver: Solver | None = None) -> dict[str, float]:
@@ -76,8 +95,9 @@ def main(argv: list[str] | None = None) -> dict:
     start = time.perf_counter()
     train = Record.from_csv(args.data / f"{TRAIN}.csv", name="train")
     tests = {name: Record.from_csv(args.data / f"{name}.csv", name=name) for name in TESTS}
+    alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, tests["test_multisine"]))
     diagnosis = diagnose(frequency_response_start(train), default_effects(), train, tests["test_multisine"],
-                         ranker=Ranker(shortlist=args.shortlist), initial_state=Estimate())
+                         ranker=Ranker(shortlist=args.shortlist), initial_state=Estimate(), alpha=alpha)
     write_report(diagnosis, args.out / "diagnosis")
     models = []
     content = diagnosis_to_dict(diagnosis)
@@ -86,7 +106,14 @@ def main(argv: list[str] | None = None) -> dict:
         models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
                        "uncertainty": rung["uncertainty"], "substeps": step.solver.substeps, "rmse": rmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3e} m" for k, v in rmse.items()), flush=True)
-    result = {"found": diagnosis.ladder.added, "models": models, "hybrid": content["hybrid"],
+    final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy
+    hybrid = hybrid_entry(final, [train], alpha, not alarm.inadequate, alarm.message,
+                          {"test_multisine": (twice(tests["test_multisine"]), None),
+                           "test_sinesweep": (tests["test_sinesweep"], None)}, scored_rmse)
+    result = {"schema_version": SCHEMA_VERSION, "benchmark": "boucwen",
+              "protocol": protocol(TRAIN, list(TESTS), 0, "RMSE of the displacement, free run from rest "
+                                   "(test_multisine: its periodic steady state)", "m"),
+              "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid, "hybrids": content["hybrid"],
               "seconds": time.perf_counter() - start}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "boucwen.json").write_text(json.dumps(result, indent=2))
@@ -96,4 +123,5 @@ def main(argv: list[str] | None = None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    with progress_lines(Path(__file__).parent.name):  # the diagnosis' steps on stderr, with the seconds
+        main()

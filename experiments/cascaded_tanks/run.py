@@ -20,19 +20,25 @@ sample is used, not even the loader's 5-sample initialisation window.
    on ``test`` as ``discovery {expression, terms, rmse {test}}``.
 
 Writes ``DIR/cascaded_tanks.json`` in the shape of ``silverbox.json``, with ``rmse: {"test": V}`` and
-``nrmse: {"test": RMSE / std y}``, and the diagnosis folder ``DIR/diagnosis/``.
+``nrmse: {"test": RMSE / std y}``, plus the leaderboard's fields (:mod:`leaderboard`), and the diagnosis folder
+``DIR/diagnosis/``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
-from tanks import FREE_SPILL_RATE, MAX_SPILL_RATE, SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
 
-from torchpaml import (
+from leaderboard import SCHEMA_VERSION, hybrid_entry, protocol  # noqa: E402
+from tanks import FREE_SPILL_RATE, MAX_SPILL_RATE, SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow  # noqa: E402
+
+from torchpaml.cli.progress import progress_lines  # noqa: E402
+from torchpaml import (  # noqa: E402
     DeadZone,
     Discoverer,
     Estimate,
@@ -77,7 +83,8 @@ def main(argv: list[str] | None = None) -> dict:
     train, validation = estimation.window(0, cut, "train"), estimation.window(cut, None, "validation")
     physics = TwoTanks(k1=0.01, k2=0.01, k3=0.01, k4=0.02, learn=("k1", "k3", "k4"))  # 100 s; 2 V/V
     spill_rate = FREE_SPILL_RATE if args.free_spill else MAX_SPILL_RATE
-    diagnosis = diagnose(physics, candidates(spill_rate), train, validation, initial_state=Estimate())
+    alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
+    diagnosis = diagnose(physics, candidates(spill_rate), train, validation, initial_state=Estimate(), alpha=alpha)
     write_report(diagnosis, args.out / "diagnosis")
     models = []
     content = diagnosis_to_dict(diagnosis)  # its uncertainty: null where a parameter is not determined
@@ -89,8 +96,16 @@ def main(argv: list[str] | None = None) -> dict:
                        "solver": type(step.solver).__name__, "substeps": step.solver.substeps,
                        "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}})
         print(f"{step.name}: test RMSE {rmse:.3f} V", flush=True)
-    result = {"found": diagnosis.ladder.added, "models": models,
-              "hybrid": content["hybrid"], "seconds": time.perf_counter() - start}
+    final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy
+    hybrid = hybrid_entry(final, [train], alpha, not alarm.inadequate, alarm.message,
+                          {"test": (test, final.train_states[0])},
+                          lambda record, y: float((record.y - y)[:, 0].square().mean().sqrt()))
+    result = {"schema_version": SCHEMA_VERSION, "benchmark": "cascaded_tanks",
+              "protocol": protocol("estimation (its last 25 % for validation)", ["test"], 0,
+                                   "RMSE of the lower level, free run from the estimation record's estimated "
+                                   "initial state (both runs start from the same empty tanks)", "V"),
+              "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid, "hybrids": content["hybrid"],
+              "seconds": time.perf_counter() - start}
     if args.discover:
         found = diagnose(physics, [], train, validation, initial_state=Estimate(), discovery=Discoverer()).discovery
         model = (found.discovered or found.physics)
@@ -112,4 +127,5 @@ def main(argv: list[str] | None = None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    with progress_lines(Path(__file__).parent.name):  # the diagnosis' steps on stderr, with the seconds
+        main()

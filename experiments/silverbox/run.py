@@ -23,8 +23,11 @@ Writes ``DIR/silverbox.json``::
      "models": [{"model", "equation", "parameters", "uncertainty", "substeps",
                  "rmse": {"test_multisine": mV, "test_arrow_no_extrapolation": mV, "test_arrow_full": mV},
                  "nrmse": {...: RMSE / std(y) over the scored samples}}],   # physics alone first, final model last
-     "hybrid": [the Chebyshev residual on the first and last rung, on validation, with the alarm],
+     "hybrids": [the Chebyshev residual on the first and last rung, on validation, with the alarm],
      "seconds": wall time}
+
+plus the leaderboard's fields (``schema_version``, ``benchmark``, ``protocol``, ``hybrid``: the final model with the
+orthogonal residual on the test records, :mod:`leaderboard`)
 
 and the diagnosis folder ``DIR/diagnosis/`` (report.html, figures/, tensorboard/, diagnosis.json).
 """
@@ -34,12 +37,18 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from torchpaml import (
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
+
+from leaderboard import SCHEMA_VERSION, hybrid_entry, protocol  # noqa: E402
+
+from torchpaml.cli.progress import progress_lines  # noqa: E402
+from torchpaml import (  # noqa: E402
     Auto,
     Discoverer,
     Ranker,
@@ -93,11 +102,20 @@ def test_scores(model, tests: dict[str, Record], solver: Solver | None = None
     ``solver``: the one its fit resolved (``PhysicsEstimate.solver``)."""
     rmse, nrmse = {}, {}
     for name, record in tests.items():
-        x0 = estimate_initial_state(model, record, INIT_SAMPLES, solver=Auto(start=solver))
-        error = (record.y - simulate_record(model, record, x0, solver=solver)[0])[INIT_SAMPLES:, 0]
-        rmse[name] = 1000 * float(error.square().mean().sqrt())
-        nrmse[name] = float(error.square().mean().sqrt() / record.y[INIT_SAMPLES:, 0].std())
+        y_model = simulate_record(model, record, test_start(model, solver, record), solver=solver)[0]
+        rmse[name] = output_rmse_mv(record, y_model)
+        nrmse[name] = rmse[name] / 1000 / float(record.y[INIT_SAMPLES:, 0].std())
     return rmse, nrmse
+
+
+def test_start(model, solver: Solver | None, record: Record):
+    """The state that best explains the first :data:`INIT_SAMPLES` samples of ``record``, the parameters fixed."""
+    return estimate_initial_state(model, record, INIT_SAMPLES, solver=Auto(start=solver))
+
+
+def output_rmse_mv(record: Record, y_model) -> float:
+    """The benchmark's metric: RMSE of the output in mV after the initialisation window."""
+    return 1000 * float((record.y - y_model)[INIT_SAMPLES:, 0].square().mean().sqrt())
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -112,8 +130,9 @@ def main(argv: list[str] | None = None) -> dict:
     start = time.perf_counter()
     train, validation = split(Record.from_csv(args.data / "train_multisine.csv"))
     tests = {name: Record.from_csv(args.data / f"{name}.csv") for name in TESTS}
+    alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
     diagnosis = diagnose(frequency_response_start(train), default_effects(), train, validation,
-                         ranker=Ranker(shortlist=args.shortlist))
+                         ranker=Ranker(shortlist=args.shortlist), alpha=alpha)
     write_report(diagnosis, args.out / "diagnosis")
     models = []
     content = diagnosis_to_dict(diagnosis)  # its uncertainty: null where a parameter is not determined
@@ -123,8 +142,15 @@ def main(argv: list[str] | None = None) -> dict:
                        "uncertainty": rung["uncertainty"], "substeps": step.solver.substeps, "rmse": rmse,
                        "nrmse": nrmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
-    result = {"found": diagnosis.ladder.added, "models": models,
-              "hybrid": content["hybrid"], "seconds": time.perf_counter() - start}
+    final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy
+    hybrid = hybrid_entry(final, [train], alpha, not alarm.inadequate, alarm.message,
+                          {name: (r, test_start(final.model, final.solver, r)) for name, r in tests.items()},
+                          output_rmse_mv)
+    result = {"schema_version": SCHEMA_VERSION, "benchmark": "silverbox",
+              "protocol": protocol("train_multisine (its last 20 % for validation)", list(TESTS), INIT_SAMPLES,
+                                   "RMSE of the output, free run", "mV"),
+              "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid, "hybrids": content["hybrid"],
+              "seconds": time.perf_counter() - start}
     if args.discover:  # discovery alone, on the linear physics: which force is missing, in closed form
         found = diagnose(frequency_response_start(train), [], train, validation, discovery=Discoverer()).discovery
         discovered = found.discovered
@@ -140,4 +166,5 @@ def main(argv: list[str] | None = None) -> dict:
 
 
 if __name__ == "__main__":
-    main()
+    with progress_lines(Path(__file__).parent.name):  # the diagnosis' steps on stderr, with the seconds
+        main()

@@ -7,6 +7,7 @@ Skipped cleanly when the data are absent. The whole experiment, ``python experim
 import pytest
 
 from experiment_modules import load
+from test_leaderboard import check_contract
 from torchpaml import Record, fit_physics
 
 boucwen = load("boucwen/run.py")
@@ -41,3 +42,4 @@ def test_the_ladder_finds_the_hysteresis_and_beats_the_best_published_figure(tmp
     for name, value in truth.items():
         assert final["parameters"][name] == pytest.approx(value, rel=0.05), name
     assert (tmp_path / "boucwen.json").is_file()
+    check_contract(result, "boucwen", ["test_multisine", "test_sinesweep"])

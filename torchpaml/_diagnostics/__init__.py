@@ -4,7 +4,7 @@ from torchpaml._diagnostics.adequacy import Adequacy, assess_adequacy
 from torchpaml._diagnostics.compare import Comparison, compare
 from torchpaml._diagnostics.discoverer import Discoverer
 from torchpaml._diagnostics.discovery import Discovery, discover_missing_force
-from torchpaml._diagnostics.diagnosis import Diagnosis, HybridScore, diagnose
+from torchpaml._diagnostics.diagnosis import Diagnosis, HybridScore, diagnose, hybrid_residual
 from torchpaml._diagnostics.harmonics import HarmonicFingerprint, harmonic_fingerprint
 from torchpaml._diagnostics.ladder import Ladder, model_ladder
 from torchpaml._diagnostics.ranker import Ranker
@@ -42,6 +42,7 @@ __all__ = [
     "discover_missing_force",
     "error_by_amplitude",
     "harmonic_fingerprint",
+    "hybrid_residual",
     "model_ladder",
     "rank_missing_effects",
     "residual_analysis",

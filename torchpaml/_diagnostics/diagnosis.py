@@ -58,7 +58,7 @@ from torchpaml._physics.effects import AbstractEffect
 from torchpaml._physics.terms import TermLibrary
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
 
-__all__ = ["Diagnosis", "HybridScore", "diagnose"]
+__all__ = ["Diagnosis", "HybridScore", "diagnose", "hybrid_residual"]
 
 log = logging.getLogger(__name__)
 
@@ -162,14 +162,27 @@ def _stack(records: list[Record], what: str) -> tuple[torch.Tensor, torch.Tensor
     return torch.stack([r.u for r in records]), torch.stack([r.y for r in records])
 
 
-def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alpha: float) -> HybridScore:
-    """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid."""
+def hybrid_residual(step: ModelScore, train: Record | Sequence[Record], alpha: float
+                    ) -> tuple[ChebyshevHammerstein, torch.Tensor]:
+    """The Chebyshev-Hammerstein residual of the paper fitted on the training residual $y - \\hat y$ of ``step``'s
+    fitted model (each record from its initial state), as :func:`diagnose` fits it on its first and last rung, and
+    the model's training output $\\hat y$ (records, time, n_y). ``alpha``: the residual's domain, max $|u|$ it takes
+    (:class:`~torchpaml.DomainError` beyond). The records must have one length and grid."""
+    train = as_records(train)
     t = train[0].elapsed
     residual = ChebyshevHammerstein.for_sampling(alpha, uniform_step(t))
     u, y = _stack(train, "training")
     y_physics = torch.cat([simulate_record(step.model, r, x0, solver=step.solver)
                            for r, x0 in zip(train, step.train_states, strict=True)])
     fit_chebyshev_hammerstein(residual, t, u, y - y_physics, rtol=DECISION_TOLERANCE)
+    return residual, y_physics
+
+
+def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alpha: float) -> HybridScore:
+    """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid."""
+    t = train[0].elapsed
+    u, y = _stack(train, "training")
+    residual, y_physics = hybrid_residual(step, train, alpha)
     with torch.no_grad():
         hybrid_train = mismatch(y, y_physics + residual(t, u))
         v_u, v_y = _stack(validation, "validation")

@@ -1,0 +1,49 @@
+"""The leaderboard (``make leaderboard``): EMPS on its protocol, and the contract every benchmark's JSON keeps.
+
+Skipped cleanly when ../shared/data is absent. Each whole experiment runs in the experiments lane
+(`make test-experiments`): EMPS about 65 s.
+"""
+
+import json
+import math
+
+import pytest
+
+from experiment_modules import load
+
+emps = load("emps/run.py")
+leaderboard = load("leaderboard.py")
+pytestmark = pytest.mark.skipif(not (emps.DATA / "estimation.csv").is_file(),
+                                reason="the EMPS data (../shared/data/emps) are absent")
+
+
+def check_contract(result: dict, benchmark: str, splits: list[str]) -> None:
+    """The leaderboard's fields (``experiments/leaderboard.py``), finite figures, and the ladder from the linear
+    physics to the final grey box."""
+    assert result["schema_version"] == leaderboard.SCHEMA_VERSION and result["benchmark"] == benchmark
+    assert set(result["protocol"]) == {"train", "test", "init_window", "metric", "unit"}
+    assert result["protocol"]["test"] == splits
+    assert len(result["models"]) == 1 + len(result["found"])
+    for model in result["models"]:
+        assert {"model", "equation", "parameters", "uncertainty", "rmse"} <= set(model)
+        assert set(model["rmse"]) == set(splits) and all(math.isfinite(v) for v in model["rmse"].values())
+    hybrid = result["hybrid"]
+    assert set(hybrid) == {"model", "accepted", "rmse", "reason"} and isinstance(hybrid["accepted"], bool)
+    assert set(hybrid["rmse"]) == set(splits)
+    assert all(v is None or math.isfinite(v) for v in hybrid["rmse"].values())
+    assert "Infinity" not in json.dumps(result) and "NaN" not in json.dumps(result)
+
+
+@pytest.mark.experiment
+def test_emps_the_rigid_body_gains_its_offset_and_coulomb_friction(tmp_path):
+    result = emps.main(["--out", str(tmp_path)])
+    check_contract(result, "emps", ["test"])
+    assert result["found"] == ["constant_force", "coulomb_friction"]
+    linear, final = (m["rmse"]["test"] for m in (result["models"][0], result["models"][-1]))
+    assert linear > 50.0  # the linear rigid body drifts: measured 96.5 mm
+    assert final <= 7.0  # measured 6.01 mm; dynoNet 2.64 mm; the goal 1.5 mm is not met
+    final_parameters = result["models"][-1]["parameters"]
+    assert 80 < final_parameters["M"] < 110 and 150 < final_parameters["Fv"] < 250  # kg, N s/m: the README's orders
+    assert 15 < final_parameters["M"] * final_parameters["coulomb_friction.Fc"] < 30  # Fc in N
+    assert result["seconds"] < 600
+    assert json.loads((tmp_path / "emps.json").read_text()) == json.loads(json.dumps(result))
