@@ -103,7 +103,8 @@ def main(argv: list[str] | None = None) -> dict:
     result = {"schema_version": SCHEMA_VERSION, "benchmark": "cascaded_tanks",
               "protocol": protocol("estimation (its last 25 % for validation)", ["test"], 0,
                                    "RMSE of the lower level, free run from the estimation record's estimated "
-                                   "initial state (both runs start from the same empty tanks)", "V"),
+                                   "initial state (the benchmark document: both records start from the same state)",
+                                   "V"),
               "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid, "hybrids": content["hybrid"],
               "seconds": time.perf_counter() - start}
     if args.discover:
