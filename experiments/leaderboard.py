@@ -15,16 +15,28 @@ from its inadequacy alarm on validation, and an RMSE of ``null`` where a test in
 
 from __future__ import annotations
 
+import argparse
+import json
 from collections.abc import Callable
+from pathlib import Path
 
 import torch
 
 from torchpaml import DomainError, ModelScore, Record, hybrid_residual, simulate_record
 
-__all__ = ["SCHEMA_VERSION", "hybrid_entry", "model_entry", "protocol"]
+__all__ = ["SCHEMA_VERSION", "arguments", "hybrid_entry", "model_entry", "protocol", "write_result"]
 
 #: The version of the leaderboard fields; a change of their meaning raises it.
 SCHEMA_VERSION = 1
+
+
+def arguments(doc: str, data: Path) -> argparse.ArgumentParser:
+    """A benchmark run's command line: ``--out DIR``, ``--data PATH`` (default ``data``) and ``--shortlist K``."""
+    parser = argparse.ArgumentParser(description=doc.split("\n")[0])
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--data", type=Path, default=data, help=f"the benchmark's data folder (default {data})")
+    parser.add_argument("--shortlist", type=int, default=2, help="candidates refitted per rung (default 2)")
+    return parser
 
 
 def protocol(train: str, test: list[str], init_window: int, metric: str, unit: str) -> dict:
@@ -57,3 +69,13 @@ def hybrid_entry(step: ModelScore, train: list[Record], alpha: float, accepted: 
                 continue
         rmse[name] = score(record, y)
     return {"model": f"{step.name} + ChebyshevHammerstein", "accepted": accepted, "rmse": rmse, "reason": reason}
+
+
+def write_result(out: Path, result: dict, verdict: str) -> dict:
+    """Write ``result`` as ``out/<benchmark>.json``, print the diagnosis' verdict and where it went; returns it."""
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / f"{result['benchmark']}.json"
+    path.write_text(json.dumps(result, indent=2))
+    print(verdict)
+    print(f"wrote {path} in {result['seconds']:.0f} s")
+    return result

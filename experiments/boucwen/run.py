@@ -33,8 +33,6 @@ and the diagnosis folder ``DIR/diagnosis/`` (report.html, figures/, tensorboard/
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -47,7 +45,7 @@ from torchpaml import (Estimate, Ranker, Record, Solver, default_effects, diagno
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
-from leaderboard import SCHEMA_VERSION, hybrid_entry, protocol  # noqa: E402
+from leaderboard import SCHEMA_VERSION, arguments, hybrid_entry, protocol, write_result  # noqa: E402
 from mass_spring_damper import frequency_response_start  # noqa: E402  (the user's physics, beside this script)
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "boucwen"
@@ -94,10 +92,7 @@ def test_rmse(model, tests: dict[str, Record], solver: Solver | None = None) -> 
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--data", type=Path, default=DATA, help=f"the boucwen folder (default {DATA})")
-    parser.add_argument("--shortlist", type=int, default=2, help="candidates refitted per rung (default 2)")
+    parser = arguments(__doc__, DATA)
     args = parser.parse_args(argv)
     if not (args.data / f"{TRAIN}.csv").is_file():
         parser.error(f"{args.data} has no {TRAIN}.csv; point --data at shared/data/boucwen")
@@ -125,11 +120,7 @@ def main(argv: list[str] | None = None) -> dict:
                                    "state)", "m"),
               "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid, "hybrids": content["hybrid"],
               "seconds": time.perf_counter() - start}
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "boucwen.json").write_text(json.dumps(result, indent=2))
-    print(diagnosis.verdict)
-    print(f"wrote {args.out / 'boucwen.json'} in {result['seconds']:.0f} s")
-    return result
+    return write_result(args.out, result, diagnosis.verdict)
 
 
 if __name__ == "__main__":

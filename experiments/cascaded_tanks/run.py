@@ -27,14 +27,13 @@ Writes ``DIR/cascaded_tanks.json`` in the shape of ``silverbox.json``, with ``rm
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
 
-from leaderboard import SCHEMA_VERSION, hybrid_entry, protocol  # noqa: E402
+from leaderboard import SCHEMA_VERSION, hybrid_entry, protocol, write_result  # noqa: E402
 from tanks import FREE_SPILL_RATE, MAX_SPILL_RATE, SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow  # noqa: E402
 
 from torchpaml.cli.progress import progress_lines  # noqa: E402
@@ -118,13 +117,9 @@ def main(argv: list[str] | None = None) -> dict:
                                "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}}
         print(f"discovered {found.expression}: test RMSE {rmse:.3f} V", flush=True)
         result["seconds"] = time.perf_counter() - start
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "cascaded_tanks.json").write_text(json.dumps(result, indent=2))
     for ranking in diagnosis.ladder.rankings:
         print(ranking_table(ranking))
-    print(diagnosis.verdict)
-    print(f"wrote {args.out / 'cascaded_tanks.json'} in {result['seconds']:.0f} s")
-    return result
+    return write_result(args.out, result, diagnosis.verdict)
 
 
 if __name__ == "__main__":

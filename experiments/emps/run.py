@@ -22,8 +22,6 @@ Writes ``DIR/emps.json`` (the leaderboard's fields, :mod:`leaderboard`, plus ``f
 
 from __future__ import annotations
 
-import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -31,7 +29,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from leaderboard import SCHEMA_VERSION, hybrid_entry, model_entry, protocol  # noqa: E402
+from leaderboard import SCHEMA_VERSION, arguments, hybrid_entry, model_entry, protocol, write_result  # noqa: E402
 from rigid_body import RigidBody  # noqa: E402
 
 from torchpaml.cli.progress import progress_lines  # noqa: E402
@@ -79,10 +77,7 @@ def test_start(model, solver, record: Record):
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--data", type=Path, default=DATA, help=f"the emps folder (default {DATA})")
-    parser.add_argument("--shortlist", type=int, default=2, help="candidates refitted per rung (default 2)")
+    parser = arguments(__doc__, DATA)
     args = parser.parse_args(argv)
     if not (args.data / "estimation.csv").is_file():
         parser.error(f"{args.data} has no estimation.csv; point --data at shared/data/emps")
@@ -108,11 +103,7 @@ def main(argv: list[str] | None = None) -> dict:
                                    "RMSE of the position, free run from vir", "mm"),
               "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid,
               "seconds": time.perf_counter() - start}
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "emps.json").write_text(json.dumps(result, indent=2))
-    print(diagnosis.verdict)
-    print(f"wrote {args.out / 'emps.json'} in {result['seconds']:.0f} s")
-    return result
+    return write_result(args.out, result, diagnosis.verdict)
 
 
 if __name__ == "__main__":

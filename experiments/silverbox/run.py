@@ -34,8 +34,6 @@ and the diagnosis folder ``DIR/diagnosis/`` (report.html, figures/, tensorboard/
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import sys
 import time
@@ -45,7 +43,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
 
-from leaderboard import SCHEMA_VERSION, hybrid_entry, protocol  # noqa: E402
+from leaderboard import SCHEMA_VERSION, arguments, hybrid_entry, protocol, write_result  # noqa: E402
 
 from torchpaml.cli.progress import progress_lines  # noqa: E402
 from torchpaml import (  # noqa: E402
@@ -119,10 +117,7 @@ def output_rmse_mv(record: Record, y_model) -> float:
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", type=Path, required=True, help="output folder")
-    parser.add_argument("--data", type=Path, default=DATA, help=f"the silverbox folder (default {DATA})")
-    parser.add_argument("--shortlist", type=int, default=2, help="candidates refitted per rung (default 2)")
+    parser = arguments(__doc__, DATA)
     parser.add_argument("--discover", action="store_true", help="also discover a force outside the library")
     args = parser.parse_args(argv)
     if not (args.data / "train_multisine.csv").is_file():
@@ -158,11 +153,7 @@ def main(argv: list[str] | None = None) -> dict:
         result["discovery"] = {**discovery_to_dict(found), "rmse": rmse, "nrmse": nrmse}
         print(f"discovered {found.expression}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
         result["seconds"] = time.perf_counter() - start
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "silverbox.json").write_text(json.dumps(result, indent=2))
-    print(diagnosis.verdict)
-    print(f"wrote {args.out / 'silverbox.json'} in {result['seconds']:.0f} s")
-    return result
+    return write_result(args.out, result, diagnosis.verdict)
 
 
 if __name__ == "__main__":
