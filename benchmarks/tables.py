@@ -154,10 +154,11 @@ def leaderboard(results: Path) -> str | None:
         if hybrid["rmse"][split] is None:
             verdict = "the test input leaves the residual's domain; " + verdict
         black, grey = published["black"], published["grey"]
+        floor = f" (the noise floor: {data['noise_floor']['rms']:.3g} {unit})" if "noise_floor" in data else ""
         lines.append(f"| {name} ({split}) | {_figure(data['models'][0]['rmse'][split], unit)} "
                      f"| {_figure(data['models'][-1]['rmse'][split], unit)} ({data['models'][-1]['model']}) "
                      f"| {_figure(hybrid['rmse'][split], unit)} ({verdict}) | {black[0]} ({black[1]}{'; ' + black[2] if black[2] else ''}) "
-                     f"| {grey[0]} ({grey[1]}{'; ' + grey[2] if grey[2] else ''}) | {published['goal']} |")
+                     f"| {grey[0]} ({grey[1]}{'; ' + grey[2] if grey[2] else ''}) | {published['goal']}{floor} |")
         rows += 1
     return "\n".join(lines) if rows else None
 

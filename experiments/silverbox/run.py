@@ -27,7 +27,8 @@ Writes ``DIR/silverbox.json``::
      "seconds": wall time}
 
 plus the leaderboard's fields (``schema_version``, ``benchmark``, ``protocol``, ``hybrid``: the final model with the
-orthogonal residual on the test records, :mod:`leaderboard`)
+orthogonal residual on the test records, :mod:`leaderboard`) and ``noise_floor {rms, samples}``: the output noise's RMS
+in mV, estimated on the training record where its input repeats (:func:`noise_floor`)
 
 and the diagnosis folder ``DIR/diagnosis/`` (report.html, figures/, tensorboard/, diagnosis.json).
 """
@@ -66,6 +67,8 @@ DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "silverbox"
 TESTS = ("test_multisine", "test_arrow_no_extrapolation", "test_arrow_full")
 VALIDATION_SHARE = 0.2
 INIT_SAMPLES = 50
+#: Samples per period of the multisine realisations (the data README).
+PERIOD = 8192
 
 
 def frequency_response_start(record: Record) -> Oscillator:
@@ -106,6 +109,20 @@ def test_scores(model, tests: dict[str, Record], solver: Solver | None = None
     return rmse, nrmse
 
 
+def noise_floor(record: Record, period: int = PERIOD, window: int = 64) -> tuple[float, int]:
+    r"""The output noise's RMS in mV, from the places where the record's input repeats at lag ``period``: the
+    multisine's realisations are each preceded by the end of their own period, so there $u_k \approx u_{k+P}$ and,
+    once the resonance has settled (the second half of each such run), $y_k - y_{k+P}$ is the difference of two
+    noise samples: the floor is its RMS over $\sqrt 2$. Also returns how many samples it rests on."""
+    u, y = record.u[:, 0].numpy(), record.y[:, 0].numpy()
+    gap = np.abs(u[:-period] - u[period:])
+    mean_gap = np.convolve(gap, np.ones(window) / window, mode="same")
+    repeats = np.nonzero(mean_gap < 0.1 * np.sqrt(np.mean(u**2)))[0]
+    runs = [run for run in np.split(repeats, np.nonzero(np.diff(repeats) > 1)[0] + 1) if len(run) > 2 * window]
+    differences = np.concatenate([y[run[len(run) // 2:]] - y[run[len(run) // 2:] + period] for run in runs])
+    return 1000 * float(differences.std()) / math.sqrt(2), len(differences)
+
+
 def test_start(model, solver: Solver | None, record: Record):
     """The state that best explains the first :data:`INIT_SAMPLES` samples of ``record``, the parameters fixed."""
     return estimate_initial_state(model, record, INIT_SAMPLES, solver=Auto(start=solver))
@@ -144,6 +161,7 @@ def main(argv: list[str] | None = None) -> dict:
     result = {"schema_version": SCHEMA_VERSION, "benchmark": "silverbox",
               "protocol": protocol("train_multisine (its last 20 % for validation)", list(TESTS), INIT_SAMPLES,
                                    "RMSE of the output, free run", "mV"),
+              "noise_floor": dict(zip(("rms", "samples"), noise_floor(train), strict=True)),
               "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid, "hybrids": content["hybrid"],
               "seconds": time.perf_counter() - start}
     if args.discover:  # discovery alone, on the linear physics: which force is missing, in closed form
