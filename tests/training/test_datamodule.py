@@ -45,7 +45,7 @@ def test_records_on_different_grids_cannot_share_a_batch(tmp_path):
     with pytest.raises(DataError, match="different time grids.*batch_size: 1"):
         next(iter(data.train_dataloader()))
     assert len(list(RecordDataModule(Files([str(tmp_path / "a.csv"), str(tmp_path / "b.csv")]),
-                                         batch_size=1).train_dataloader())) == 2
+                                     batch_size=1).train_dataloader())) == 2
 
 
 def test_file_sources_name_the_problem():

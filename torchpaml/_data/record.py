@@ -1,4 +1,4 @@
-"""Experiments: measured or simulated input/output records, with validated CSV and NPZ I/O."""
+"""Records: measured or simulated input/output records, with validated CSV and NPZ I/O."""
 
 from __future__ import annotations
 
@@ -100,9 +100,9 @@ class Record:
         )
 
     def window(self, start: int | None = None, stop: int | None = None, name: str | None = None) -> Record:
-        """Samples ``start:stop`` as an experiment of their own (named ``name``, else this one's), with its hold."""
+        """Samples ``start:stop`` as a record of their own (named ``name``, else this one's), with its hold."""
         return Record(self.t[start:stop], self.u[start:stop], self.y[start:stop], name or self.name, self.metadata,
-                          self.hold)
+                      self.hold)
 
     def batch(self) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """``(t (time,), u (1, time, n_u), y (1, time, n_y))``."""

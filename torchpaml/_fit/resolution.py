@@ -68,7 +68,7 @@ def _stiffness(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None
     that an unstable explicit step can leave unseen, at a fraction of a simulation's cost; along ``solver``'s own
     trajectory where TR-BDF2's Newton does not converge (a corner it cannot resolve at that step)."""
     coarse = Record(record.t[::PROBE_STRIDE], record.u[::PROBE_STRIDE], record.y[::PROBE_STRIDE], record.name,
-                        hold=record.hold)
+                    hold=record.hold)
     try:
         states, probe, stride = record_states(physics, coarse, x0, TRBDF2(substeps=1)), coarse, PROBE_STRIDE
     except SimulationError:

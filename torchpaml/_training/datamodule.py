@@ -78,7 +78,7 @@ class RecordDataModule(L.LightningDataModule):
         self._records: dict[str, list[Record]] = {}
 
     def records(self, split: str) -> list[Record]:
-        """The experiments of ``split`` (loaded once); empty if the split has no source."""
+        """The records of ``split`` (loaded once); empty if the split has no source."""
         if split not in SPLITS:
             raise ConfigurationError(f"unknown split {split!r}; use one of {SPLITS}")
         if split not in self._records:
