@@ -49,3 +49,30 @@ def test_a_value_the_physics_refuses_in_a_config_is_one_line_naming_the_class_an
     assert code == 2
     assert err.strip() == ("torchpaml diagnose: error: config class_path torchpaml.Oscillator: parameter 'zeta' must be "
                            "positive and finite, got -1.0; pass a value > 0")
+
+
+def test_a_physics_with_two_outputs_given_records_with_one_is_one_line_naming_both_counts(tmp_path, capsys,
+                                                                                          monkeypatch):
+    from torchpaml import Oscillator, Record, pseudorandom, simulate, time_grid
+
+    (tmp_path / "two_outputs.py").write_text(
+        "from torchpaml import Oscillator\n\n\n"
+        "class TwoOutputs(Oscillator):\n"
+        "    output_dim = 2\n\n"
+        "    def output(self, x, u):\n"
+        "        return x\n")
+    t = time_grid(10.0, 0.05)
+    for name, seed in (("train", 0), ("validation", 1)):
+        u = pseudorandom(t, 1.0, seed=seed)
+        Record(t, u[0], simulate(Oscillator(), t, u)[0].detach()).to_csv(tmp_path / f"{name}.csv")
+    (tmp_path / "config.yaml").write_text("physics: {class_path: two_outputs.TwoOutputs}\n")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr("sys.argv", ["torchpaml"])
+    with pytest.raises(SystemExit) as stop:
+        main(["diagnose", "--config", "config.yaml", "--data", "train.csv", "--validation", "validation.csv",
+              "--out", "out"])
+    err = capsys.readouterr().err.strip()
+    assert stop.value.code == 2 and "\n" not in err
+    assert err.startswith("torchpaml diagnose: error: record 'train' has 1 output channel(s), but TwoOutputs has 2 "
+                          "(output_dim)")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -116,7 +117,12 @@ class Record:
     # -- I/O ---------------------------------------------------------------------------------
     @classmethod
     def from_csv(cls, path: str | Path, name: str | None = None, hold: str | None = None) -> Record:
-        """Read a CSV with header ``t,u,y`` (extra columns ignored; a first ``# {json}`` line is metadata).
+        """Read a CSV whose header holds ``t`` and the channels (a first ``# {json}`` line is metadata; extra columns
+        are ignored):
+
+        * ``t,u,y``: one input and one output;
+        * ``t,u1,u2,…,y1,y2,…``: several, in the order of their numbers;
+        * named channels, declared in the metadata, e.g. ``# {"inputs": ["force"], "outputs": ["x1", "x2"]}``.
 
         ``hold``: how the input moved between samples; default the metadata's ``"hold"``, else ``"foh"``."""
         path = Path(path)
@@ -130,11 +136,7 @@ class Record:
         if not lines or not lines[0].strip():
             raise DataError(f"{path} is empty; expected a header 't,u,y' followed by one row per sample")
         header = [h.strip() for h in lines[0].split(",")]
-        missing = [c for c in _COLUMNS if c not in header]
-        if missing:
-            raise DataError(
-                f"{path}: missing column(s) {missing}; the header is {header}, expected it to contain 't,u,y'"
-            )
+        inputs, outputs = _channels(header, metadata, path)
         rows = [r for r in lines[1:] if r.strip()]
         if not rows:
             raise DataError(f"{path} has a header but no data rows")
@@ -145,7 +147,8 @@ class Record:
         if table.ndim != 2 or table.shape[1] != len(header):
             raise DataError(f"{path}: every row must have {len(header)} values like the header")
         columns = {h: table[:, i] for i, h in enumerate(header)}
-        return cls(columns["t"], columns["u"], columns["y"], name or path.stem, metadata,
+        return cls(columns["t"], np.stack([columns[c] for c in inputs], axis=1),
+                   np.stack([columns[c] for c in outputs], axis=1), name or path.stem, metadata,
                    hold or metadata.get("hold", "foh"))
 
     def _written_metadata(self) -> dict:
@@ -153,17 +156,19 @@ class Record:
         return self.metadata if self.hold == "foh" else {**self.metadata, "hold": self.hold}
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write ``t,u,y`` (single-channel u and y), with the metadata as a first ``# {json}`` line."""
-        if self.u.shape[1] != 1 or self.y.shape[1] != 1:
-            raise DataError("CSV holds one input and one output channel; use to_npz for several")
+        """Write the header ``t,u,y`` (one input and one output), ``t,u1,…,y1,…`` (several), or the channels' names
+        where the metadata declares them (``inputs``, ``outputs``), with the metadata as a first ``# {json}`` line;
+        :meth:`from_csv` reads it back."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        table = torch.stack([self.t, self.u[:, 0], self.y[:, 0]], dim=1).numpy()
+        metadata = self._written_metadata()
+        names = [*_names(metadata.get("inputs"), "u", self.u.shape[1]), *_names(metadata.get("outputs"), "y",
+                                                                                    self.y.shape[1])]
+        table = torch.cat([self.t[:, None], self.u, self.y], dim=1).numpy()
         buffer = io.StringIO()
         np.savetxt(buffer, table, delimiter=",", fmt="%.17g")
-        metadata = self._written_metadata()
         head = f"# {json.dumps(metadata)}\n" if metadata else ""
-        path.write_text(f"{head}t,u,y\n{buffer.getvalue()}")
+        path.write_text(f"{head}{','.join(['t', *names])}\n{buffer.getvalue()}")
         return path
 
     @classmethod
@@ -187,6 +192,33 @@ class Record:
         np.savez(path, t=self.t.numpy(), u=self.u.numpy(), y=self.y.numpy(),
                  metadata=json.dumps(self._written_metadata()))
         return path
+
+
+def _names(declared: list[str] | None, letter: str, count: int) -> list[str]:
+    """The header names of ``count`` channels: the declared ones, else ``u`` (one) or ``u1, u2, …``."""
+    if declared is not None:
+        return list(declared)
+    return [letter] if count == 1 else [f"{letter}{i}" for i in range(1, count + 1)]
+
+
+def _channels(header: list[str], metadata: dict, path: Path) -> tuple[list[str], list[str]]:
+    """The input and output columns of a CSV's ``header`` (:meth:`Record.from_csv`); raises :class:`DataError` naming
+    the columns that are missing."""
+    found = []
+    for letter, key in (("u", "inputs"), ("y", "outputs")):
+        if key in metadata:
+            names = list(metadata[key])
+        elif letter in header:
+            names = [letter]
+        else:
+            names = sorted((h for h in header if re.fullmatch(rf"{letter}\d+", h)), key=lambda h: int(h[1:]))
+        found.append(names or [letter])
+    missing = [c for c in ["t", *found[0], *found[1]] if c not in header]
+    if missing:
+        raise DataError(f"{path}: missing column(s) {missing}; the header is {header}, expected it to contain "
+                        "'t,u,y' (or 't,u1,u2,…,y1,y2,…', or the channels the metadata's \"inputs\" and \"outputs\" "
+                        "name)")
+    return found[0], found[1]
 
 
 def _as_columns(values, column: str) -> torch.Tensor:

@@ -53,7 +53,7 @@ from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters
 from torchpaml._fit.initial_state import InitialState, Rest
 from torchpaml._physics.base import AbstractPhysics
-from torchpaml._physics.checks import check_physics
+from torchpaml._physics.checks import check_channels, check_physics
 from torchpaml._physics.effects import AbstractEffect
 from torchpaml._physics.terms import TermLibrary
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
@@ -289,6 +289,8 @@ def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect
     samples than twice the most parameters a fit takes and a uniform grid (the residual's exact filter)."""
     most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
                                                  for c in candidates), default=0)
+    for record in train + validation:
+        check_channels(physics, record.name, record.u.shape[1], record.y.shape[1])
     check_physics(physics, train[0].t, train[0].u)
     if discovery is not None:
         discovery.library.build(physics)  # a user term that does not parse is named before any fit

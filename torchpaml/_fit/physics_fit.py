@@ -44,6 +44,7 @@ from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solv
 from torchpaml._fit.trust_region import TrustRegionProblem
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
 from torchpaml._physics.base import AbstractPhysics
+from torchpaml._physics.checks import check_channels
 from torchpaml._simulate.lti import exact_step
 from torchpaml._simulate.stiffness import STIFF_SUBSTEPS
 from torchpaml._simulate.solvers import TRBDF2, Auto, Exact, FixedStep, Solver, engine_solver
@@ -166,10 +167,13 @@ def fit_physics(
 
 def _checked_unknowns(physics: AbstractPhysics, records: list[Record], initial_state: InitialState,
                       start_states: Sequence[torch.Tensor] | None) -> list[str]:
-    """The learnable parameters' names, after checking that the fit has unknowns and ``start_states`` fits."""
+    """The learnable parameters' names, after checking that the records' channels are the physics', that the fit has
+    unknowns, and that ``start_states`` fits."""
     if start_states is not None and (not initial_state.estimated or len(start_states) != len(records)):
         raise ConfigurationError(f"start_states needs initial_state=Estimate() and one state per record "
                                  f"({len(records)}), got {len(start_states)} with {initial_state!r}")
+    for record in records:
+        check_channels(physics, record.name, record.u.shape[1], record.y.shape[1])
     names = physics.learnable_names()
     if not names and not initial_state.estimated:
         raise ConfigurationError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")

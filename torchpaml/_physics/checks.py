@@ -16,10 +16,10 @@ from collections.abc import Callable
 
 import torch
 
-from torchpaml._errors import PhysicsError
+from torchpaml._errors import DataError, PhysicsError
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics
 
-__all__ = ["check_physics"]
+__all__ = ["check_channels", "check_physics"]
 
 #: Samples of the record the methods are evaluated on.
 SAMPLES = 4
@@ -41,6 +41,16 @@ def _evaluate(name: str, method: str, call: Callable[[], torch.Tensor], expected
         raise PhysicsError(f"{name}.{method} returned NaN or infinity at the starting parameters "
                            f"{ {k: float(f'{v:.4g}') for k, v in parameters.items()} } on the first samples; check "
                            "the formula (a division by a state that starts at 0, a log or sqrt of a negative value)")
+
+
+def check_channels(physics: AbstractPhysics, record: str, inputs: int, outputs: int) -> None:
+    """:class:`~torchpaml.DataError` in one line where the record ``record``'s ``inputs`` and ``outputs`` channels are
+    not the physics' ``input_dim`` and ``output_dim``."""
+    for what, given, declared in (("input", inputs, physics.input_dim), ("output", outputs, physics.output_dim)):
+        if given != declared:
+            raise DataError(f"record {record!r} has {given} {what} channel(s), but {physics.display_name} has "
+                            f"{declared} ({what}_dim); give records with {declared} {what} column(s) (header "
+                            f"t,u1,…,y1,…), or a physics whose {what}_dim is {given}")
 
 
 def check_physics(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor) -> None:
