@@ -52,3 +52,10 @@ def test_a_physics_given_records_with_other_channels_is_refused_in_one_line_nami
     message = str(error.value)
     assert "\n" not in message
     assert message.startswith("record 'two' has 2 output channel(s), but Oscillator has 1 (output_dim)")
+
+
+def test_names_that_do_not_fit_the_channels_are_refused_before_writing(tmp_path):
+    record = _record(1, 2, {"inputs": ["force"], "outputs": ["x1"]})
+    with pytest.raises(DataError, match=r"names 1 channel\(s\) \['x1'\] for the 2 columns of 'y'"):
+        record.to_csv(tmp_path / "r.csv")
+    assert not (tmp_path / "r.csv").exists()

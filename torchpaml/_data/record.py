@@ -197,6 +197,9 @@ class Record:
 def _names(declared: list[str] | None, letter: str, count: int) -> list[str]:
     """The header names of ``count`` channels: the declared ones, else ``u`` (one) or ``u1, u2, …``."""
     if declared is not None:
+        if len(declared) != count:
+            raise DataError(f"the metadata names {len(declared)} channel(s) {list(declared)} for the {count} columns of "
+                            f"{letter!r}; name one per column, or drop the names")
         return list(declared)
     return [letter] if count == 1 else [f"{letter}{i}" for i in range(1, count + 1)]
 
