@@ -43,3 +43,6 @@ def test_the_ladder_finds_the_hysteresis_and_beats_the_best_published_figure(tmp
         assert final["parameters"][name] == pytest.approx(value, rel=0.05), name
     assert (tmp_path / "boucwen.json").is_file()
     check_contract(result, "boucwen", ["test_multisine", "test_sinesweep"])
+    assert result["goal"]["met"]  # 4.47e-6 <= 4.5e-6 m
+    held_out = result["goal"]["limit"]["evidence"]["held_out_period"]  # at the training noise: 8e-6 m RMS
+    assert 5e-6 < held_out < 1.2e-5

@@ -31,6 +31,12 @@ def check_contract(result: dict, benchmark: str, splits: list[str]) -> None:
     assert set(hybrid) == {"model", "accepted", "rmse", "reason"} and isinstance(hybrid["accepted"], bool)
     assert set(hybrid["rmse"]) == set(splits)
     assert all(v is None or math.isfinite(v) for v in hybrid["rmse"].values())
+    goal = result["goal"]
+    assert set(goal) == {"value", "split", "figure", "met", "limit"} and goal["split"] in splits
+    counted = hybrid if hybrid["accepted"] and hybrid["rmse"][goal["split"]] is not None else result["models"][-1]
+    assert goal["figure"] == counted["rmse"][goal["split"]] and goal["met"] == (goal["figure"] <= goal["value"])
+    assert goal["limit"]["kind"] in leaderboard.LIMITS and goal["limit"]["explanation"]
+    assert goal["limit"]["evidence"] and all(math.isfinite(v) for v in goal["limit"]["evidence"].values())
     assert "Infinity" not in json.dumps(result) and "NaN" not in json.dumps(result)
 
 
@@ -42,6 +48,10 @@ def test_emps_the_rigid_body_gains_its_offset_and_coulomb_friction(tmp_path):
     linear, final = (m["rmse"]["test"] for m in (result["models"][0], result["models"][-1]))
     assert linear > 50.0  # the linear rigid body drifts: measured 96.5 mm
     assert final <= 7.0  # measured 6.01 mm; dynoNet 2.64 mm; the goal 1.5 mm is not met
+    evidence = result["goal"]["limit"]["evidence"]  # the drift is there without the test's pulses: 4.1, 4.8 mm
+    assert evidence["train"] > final / 3 and evidence["validation"] > final / 3
+    friction = result["friction"]  # N against each direction of motion: measured 18.1 and 24.7 N
+    assert 10 < friction["forward_N"] < friction["backward_N"] < 35
     final_parameters = result["models"][-1]["parameters"]
     assert 80 < final_parameters["M"] < 110 and 150 < final_parameters["Fv"] < 250  # kg, N s/m: the README's orders
     assert 15 < final_parameters["M"] * final_parameters["coulomb_friction.Fc"] < 30  # Fc in N

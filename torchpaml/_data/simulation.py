@@ -26,7 +26,8 @@ __all__ = ["record_jacobian", "record_output", "record_response", "record_states
 
 
 def _start(x0: torch.Tensor | None) -> torch.Tensor | None:
-    return None if x0 is None else x0.reshape(1, -1)
+    """``x0`` (n_state,) as the one row (1, n_state) of float64 the simulators take."""
+    return None if x0 is None else torch.as_tensor(x0, dtype=torch.float64).reshape(1, -1)
 
 
 def record_output(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None = None,
