@@ -66,7 +66,7 @@ from torchpaml._fit import (
 )
 from torchpaml._budget import Budget, OverBudget
 from torchpaml._fit.uncertainty import IdentifiabilityWarning, Uncertainty
-from torchpaml._metrics import fit_percent, mismatch, rmse
+from torchpaml._metrics import channel_mismatch, fit_percent, mismatch, rmse
 from torchpaml._parameters import Interval, PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics import (
     EFFECTS,
@@ -212,6 +212,7 @@ __all__ = [
     "incompatibility_certificates",
     # measures
     "mismatch",
+    "channel_mismatch",
     "fit_percent",
     "rmse",
     # diagnostics

@@ -10,7 +10,9 @@ $$ c_0 = \frac{\langle \mathcal R^\gamma[u], \mathcal H^\theta[u]\rangle_W}{\|\m
    \qquad
    c_1 = \frac{\langle \mathcal R^\gamma[u], \partial_\theta\mathcal H^\theta[u]\rangle_W}{\|\mathcal R^\gamma[u]\|_W\,\|\partial_\theta\mathcal H^\theta[u]\|_W}. $$
 
-$|c_0| = 0$ for every $\gamma$ is zeroth-order incompatibility, $|c_1| = 0$ first-order. The
+$|c_0| = 0$ for every $\gamma$ is zeroth-order incompatibility, $|c_1| = 0$ first-order. With several output
+channels each product is taken channel by channel (every input channel carries the witness) and the largest
+counts; with several parameters, the largest over their sensitivities. The
 sensitivity $\partial_\theta \mathcal H$ is a central difference with step $10^{-6}\max(1, |\theta|)$
 (truncation error $O(10^{-12})$ relative, far below the values certified), one-sided (error
 $O(10^{-6})$) where $\theta$ sits within a step of a bound of its constraint.
@@ -19,7 +21,7 @@ $O(10^{-6})$) where $\theta$ sits within a step of a bound of its constraint.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import torch
@@ -70,7 +72,10 @@ def draw_mlp(alpha: float, generator: torch.Generator, y_scale: float = 1.0, **o
 
 
 def _normalised(a: torch.Tensor, b: torch.Tensor) -> float:
-    return float((a * b).sum() / (torch.linalg.vector_norm(a) * torch.linalg.vector_norm(b)))
+    """The largest normalised inner product of ``a`` and ``b`` (batch, time, channels) over the channels, in size."""
+    return max(abs(float((a[..., c] * b[..., c]).sum() / (torch.linalg.vector_norm(a[..., c])
+                                                          * torch.linalg.vector_norm(b[..., c]))))
+               for c in range(a.shape[-1]))
 
 
 def _sensitivity(physics: AbstractPhysics, parameter: str, theta: float, step: float, t, u, y,
@@ -92,7 +97,7 @@ def incompatibility_certificates(
     draw: Callable[[torch.Generator], nn.Module],
     *,
     alpha: float,
-    parameter: str,
+    parameter: str | Sequence[str],
     omega: float = 1.0,
     duration: float = 80.0,
     transient: float | None = None,
@@ -106,7 +111,8 @@ def incompatibility_certificates(
     Args:
         physics: the physics $\\mathcal H^\\theta$ at the parameter value of interest.
         draw: returns a residual with random parameters from the given generator.
-        parameter: the physical parameter $\\theta$ to differentiate with respect to.
+        parameter: the physical parameter $\\theta$ to differentiate with respect to, or several (the largest
+            $|c_1|$ over their sensitivities counts).
         duration: record length T in s; ``transient`` (default T/2) is discarded, and the window is
             the last whole number of drive periods that fits after it.
         samples_per_period: sampling, $\Delta t = 2\pi / (\omega \cdot$ ``samples_per_period``$)$.
@@ -116,7 +122,7 @@ def incompatibility_certificates(
     period = 2 * math.pi / omega
     dt = period / samples_per_period
     t = time_grid(duration, dt)
-    u = cosine(t, alpha, omega)
+    u = cosine(t, alpha, omega).expand(-1, -1, physics.input_dim)  # the witness on every input channel
     transient = duration / 2 if transient is None else transient
     periods = math.floor((duration - transient) / period)
     if periods < 1:
@@ -124,15 +130,17 @@ def incompatibility_certificates(
     window = torch.zeros(len(t), dtype=torch.bool)
     window[len(t) - periods * samples_per_period :] = True
     start, end = float(t[window][0]), float(t[-1]) + dt
-    theta = physics.physical_parameters()[parameter]
-    step = 1e-6 * max(1.0, abs(theta))
+    names = [parameter] if isinstance(parameter, str) else list(parameter)
     with torch.no_grad():
         y = simulate(physics, t, u, solver=solver)
-        sensitivity = _sensitivity(physics, parameter, theta, step, t, u, y, solver)
+        sensitivities = []
+        for name in names:
+            theta = physics.physical_parameters()[name]
+            sensitivities.append(_sensitivity(physics, name, theta, 1e-6 * max(1.0, abs(theta)), t, u, y, solver))
         generator = torch.Generator().manual_seed(seed)
         zeroth, first = [], []
         for _ in range(draws):
             r = draw(generator)(t, u, y)[:, window]
-            zeroth.append(abs(_normalised(r, y[:, window])))
-            first.append(abs(_normalised(r, sensitivity[:, window])))
+            zeroth.append(_normalised(r, y[:, window]))
+            first.append(max(_normalised(r, sensitivity[:, window]) for sensitivity in sensitivities))
     return Certificate(zeroth, first, (start, end))

@@ -13,6 +13,7 @@ A fixed parameter keeps ``requires_grad=False`` on $\rho$.
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, replace
 
@@ -27,6 +28,7 @@ __all__ = [
     "PhysicalParameter",
     "Positive",
     "Real",
+    "copied_with_own_parametrizations",
     "describe_parameters",
     "format_table",
     "register_parameters",
@@ -128,6 +130,25 @@ def register_parameters(module: nn.Module, declarations: list[PhysicalParameter]
         module.register_parameter(d.name, nn.Parameter(torch.tensor(float(d.value), dtype=torch.float64)))
         parametrize.register_parametrization(module, d.name, constraint, unsafe=True)
         getattr(module.parametrizations, d.name).original.requires_grad_(d.name in learn)
+
+
+def copied_with_own_parametrizations(module: nn.Module, memo: dict) -> nn.Module:
+    """A deep copy of ``module`` whose parametrized parameters are read through its own properties.
+
+    ``torch.nn.utils.parametrize`` gives a parametrized module a class of its own, whose properties read the
+    parameters through a closure over *that* module; a plain deep copy shares the class, so inside
+    ``parametrize.cached()`` (the simulators' context) every copy reads the cache entry of the original. Two
+    copies of one effect in one model (``CoulombFriction().on("v1")`` and ``.on("v2")``) then saw each other's
+    values. The copy here gets a class and properties of its own."""
+    replica = module.__new__(type(module))
+    memo[id(module)] = replica
+    replica.__dict__ = copy.deepcopy(module.__dict__, memo)
+    if parametrize.is_parametrized(module):
+        replica.__class__ = type(module).__bases__[0]
+        parametrize._inject_new_class(replica)
+        for name in replica.parametrizations:
+            parametrize._inject_property(replica, name)
+    return replica
 
 
 def describe_parameters(module: nn.Module, prefix: str = "") -> list[dict]:

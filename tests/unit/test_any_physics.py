@@ -25,7 +25,7 @@ def test_maps_apply_to_any_physics_and_forces_are_refused_with_the_reason():
     u = 3.0 + pseudorandom(t, 1.0, seed=0)
     y = simulate(base + OutputSaturation(0.1), t, u)
     assert bool(torch.all(y.abs() < 10.0))  # ymax = 1/s = 10
-    with pytest.raises(TypeError, match="cubic_stiffness is a force.*not a SecondOrderPhysics"):
+    with pytest.raises(TypeError, match="cubic_stiffness is a force.*TwoTanks declares none"):
         base + CubicStiffness()
     with pytest.raises(TypeError, match=r"acts on the state\(s\) \['upper', 'lower'\]"):
         from torchpaml import Oscillator

@@ -3,7 +3,11 @@
 import pytest
 import torch
 
-from torchpaml import DataError, Oscillator, Record, fit_physics, pseudorandom, simulate, time_grid
+from two_mass import TRUTH, TwoMass
+from torchpaml import (ChebyshevHammerstein, DataError, DomainError, Oscillator, Record, channel_mismatch,
+                       fit_chebyshev_hammerstein, fit_physics, incompatibility_certificates, mismatch, pseudorandom,
+                       simulate, time_grid)
+from torchpaml._certificates import draw_chebyshev
 
 
 def _record(n_u: int, n_y: int, metadata: dict | None = None) -> Record:
@@ -59,3 +63,46 @@ def test_names_that_do_not_fit_the_channels_are_refused_before_writing(tmp_path)
     with pytest.raises(DataError, match=r"names 1 channel\(s\) \['x1'\] for the 2 columns of 'y'"):
         record.to_csv(tmp_path / "r.csv")
     assert not (tmp_path / "r.csv").exists()
+
+
+def test_the_overall_mismatch_is_the_root_mean_square_of_the_channels():
+    generator = torch.Generator().manual_seed(1)
+    y = torch.randn(200, 2, generator=generator, dtype=torch.float64) * torch.tensor([1.0, 1000.0])
+    y_model = y + torch.tensor([0.1, 10.0]) * torch.randn(200, 2, generator=generator, dtype=torch.float64)
+    each = channel_mismatch(y, y_model)
+    assert each.shape == (2,) and each[1] == pytest.approx(float((y - y_model)[:, 1].norm() / y[:, 1].norm()))
+    assert mismatch(y, y_model) == pytest.approx(float(each.square().mean().sqrt()), rel=1e-14)
+    assert mismatch(y[:, :1], y_model[:, :1]) == pytest.approx(float(each[0]), rel=1e-14)  # one channel: as ever
+
+
+def test_the_residual_fits_two_outputs_each_with_its_own_numerators():
+    t = time_grid(40.0, 0.05)
+    u = pseudorandom(t, 1.0, 0.5, seed=3)
+    truth = ChebyshevHammerstein(1.2, n=2, order=2, outputs=2)
+    generator = torch.Generator().manual_seed(0)
+    with torch.no_grad():
+        truth.set_coefficients(torch.randn(2, 2, 3, generator=generator, dtype=torch.float64)
+                               * torch.tensor([[[1.0]], [[100.0]]]))  # the second output 100 times the first
+        target = truth(t, u)
+    assert target.shape == (1, len(t), 2)
+    fitted = ChebyshevHammerstein(1.2, n=2, order=2, outputs=2)
+    assert fit_chebyshev_hammerstein(fitted, t, u, target).unexplained < 1e-6
+    assert ChebyshevHammerstein(1.2, n=2, order=2).coefficients().shape == (2, 3)  # one output: as ever
+
+
+def test_the_residual_takes_each_input_and_names_a_wrong_count():
+    residual = ChebyshevHammerstein(1.0, n=3, inputs=2)
+    t = time_grid(1.0, 0.1)
+    u = torch.stack([torch.full_like(t, 0.5), torch.full_like(t, -0.5)], dim=-1)[None]
+    assert residual.features(u).shape == (1, len(t), 6)
+    with pytest.raises(DomainError, match="takes 2 input channel"):
+        residual.features(u[..., :1])
+
+
+def test_certificates_hold_against_both_outputs_and_every_sensitivity_of_a_two_mass_chain():
+    physics = TwoMass(**TRUTH)
+    zeroth, first = incompatibility_certificates(
+        physics, lambda g: draw_chebyshev(1.0, g, outputs=2), alpha=1.0, parameter=list(TRUTH), duration=240.0,
+        draws=3, samples_per_period=200).worst
+    # the single-channel tolerance (tests/unit/test_certificates.py), past the chain's slower transient (decay ~0.1 1/s)
+    assert zeroth < 1e-3 and first < 1e-3

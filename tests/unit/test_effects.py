@@ -100,13 +100,13 @@ def test_composition_flattens_names_parameters_and_rejects_clashes():
         Oscillator() + 3.0
 
 
-def test_effects_need_second_order_physics():
+def test_forces_need_a_degree_of_freedom():
     from torchpaml._physics import AbstractPhysics
 
     class Tank(AbstractPhysics):
         state_names = ("level",)
 
-    with pytest.raises(TypeError, match="not a SecondOrderPhysics"):
+    with pytest.raises(TypeError, match="Tank declares none .*degrees_of_freedom"):
         Tank() + CubicStiffness()
 
 

@@ -77,6 +77,16 @@ class Record:
         return self.t - self.t[0]
 
     @property
+    def output_names(self) -> list[str]:
+        """The output channels' names: those the metadata declares (``"outputs"``), else ``y`` (one) or ``y1, y2, …``."""
+        return _names(self.metadata.get("outputs"), "y", self.y.shape[1])
+
+    @property
+    def input_names(self) -> list[str]:
+        """The input channels' names: those the metadata declares (``"inputs"``), else ``u`` (one) or ``u1, u2, …``."""
+        return _names(self.metadata.get("inputs"), "u", self.u.shape[1])
+
+    @property
     def dt(self) -> float:
         """The sampling interval; raises :class:`DataError` if the sampling is not uniform."""
         try:

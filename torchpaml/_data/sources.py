@@ -67,7 +67,8 @@ class Simulated(RecordSource):
         duration: record length, s.
         dt: sampling interval, s.
         omega: sine/cosine frequency, rad/s.
-        noise: standard deviation of white output noise as a fraction of RMS(y) (0: noise-free).
+        noise: standard deviation of white output noise as a fraction of RMS(y), of each output channel's where
+            there are several (0: noise-free).
         rtol: relative accuracy of the noise-free output (:func:`~torchpaml.simulate` with ``Auto(rtol)``: the
             step doubling for nonlinear physics; the exact path is exact). The default, :data:`MEASUREMENT_RTOL`,
             reaches sharp corners (a dead zone, Coulomb friction) within 64 substeps.
@@ -119,7 +120,7 @@ class Simulated(RecordSource):
         records = []
         for i, seed in enumerate(self.seeds):
             generator = torch.Generator().manual_seed(10_000 + seed)
-            scale = self.noise * float(y[i].pow(2).mean().sqrt())
+            scale = self.noise * (y[i].pow(2).mean(dim=0).sqrt() if y.shape[-1] > 1 else float(y[i].pow(2).mean().sqrt()))
             noisy = y[i] + scale * torch.randn(y[i].shape, generator=generator, dtype=torch.float64)
             name = f"{self.signal}-amplitude{self.amplitude:g}-seed{seed}"
             metadata = {"signal": self.signal, "amplitude": self.amplitude, "seed": seed, "noise": self.noise}

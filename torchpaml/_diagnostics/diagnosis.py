@@ -7,7 +7,9 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    beats the current model's criterion by more than the threshold;
 2. **where the fitted physics fails** on the validation records: residual whiteness and input
    cross-correlation (:func:`~torchpaml.residual_analysis`), and the mismatch binned by
-   |u| and by |y| (:func:`~torchpaml.error_by_amplitude`);
+   |u| and by |y| (:func:`~torchpaml.error_by_amplitude`), for each output channel, with each channel's mismatch
+   before and after the ladder and the channel where the missing effect shows most
+   (:mod:`~torchpaml._diagnostics.channels`);
 3. the **Chebyshev-Hammerstein residual** fitted on top of the first and of the last rung, with the
    inadequacy alarm (:func:`~torchpaml.assess_adequacy`): on wrong physics it cannot
    close the gap and says so; on physics whose training residual is noise by effect size (its
@@ -36,6 +38,7 @@ import torch
 
 from torchpaml._data import Record
 from torchpaml._diagnostics.adequacy import Adequacy, assess_adequacy
+from torchpaml._diagnostics.channels import ChannelScore, channel_scores, shows_most
 from torchpaml._diagnostics.discoverer import Discoverer
 from torchpaml._diagnostics.discovery import Discovery
 from torchpaml._diagnostics.ladder import Ladder, model_ladder
@@ -44,7 +47,7 @@ from torchpaml._diagnostics.results import ModelScore, Ranking
 from torchpaml._diagnostics.scoring import as_records
 from torchpaml._budget import REFIT_BUDGET
 from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
-from torchpaml._diagnostics.validity import AmplitudeBins, error_by_amplitude
+from torchpaml._diagnostics.validity import AmplitudeBins
 from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._grid import uniform_step
 from torchpaml._data.simulation import simulate_record
@@ -104,6 +107,15 @@ class Diagnosis:
     hybrids: list[HybridScore]
     validation: list[Record] = field(repr=False)
     discovery: Discovery | None = None
+    #: each output channel on validation (:mod:`~torchpaml._diagnostics.channels`); ``residuals``, ``by_input`` and
+    #: ``by_output`` are the first channel's
+    channels: list[ChannelScore] = field(default_factory=list)
+
+    @property
+    def shows_most(self) -> ChannelScore:
+        """The output channel where the effects the ladder added lowered the mismatch most (where it added none: where
+        the physics fails most)."""
+        return shows_most(self.channels, bool(self.ladder.added))
 
     @property
     def baseline(self) -> ModelScore:
@@ -135,7 +147,8 @@ class Diagnosis:
                 + "".join(f"; unphysical: {note}" for note in best.unphysical) + ")")
             found = (f"no missing effect found among {len(self.ranking.entries)} candidates{detail}. Validation "
                      f"mismatch {100 * base.nrmse_validation:.2f} %.")
-        verdict = f"{found} Chebyshev residual on the final model: {self.hybrids[-1].adequacy.message.rstrip('.')}."
+        verdict = f"{found}{self._per_channel()} Chebyshev residual on the final model: " \
+                  f"{self.hybrids[-1].adequacy.message.rstrip('.')}."
         undecided = [(ranking.baseline.name, e) for ranking in self.ladder.rankings for e in ranking.undecided]
         if undecided:
             verdict += (" Undecided (their refits stopped over budget): "
@@ -150,50 +163,88 @@ class Diagnosis:
         return verdict
 
 
+    def _per_channel(self) -> str:
+        """With several output channels, each one's validation mismatch and where the missing effect shows most."""
+        if len(self.channels) < 2:
+            return ""
+        most = self.shows_most
+        where = (f"the missing effect shows most at output {most.name}" if self.ladder.added
+                 else f"the physics fails most at output {most.name}")
+        return (" Per output, validation mismatch: " + ", ".join(
+            f"{c.name} {100 * c.physics:.2f} % -> {100 * c.final:.2f} %" if self.ladder.added
+            else f"{c.name} {100 * c.physics:.2f} %" for c in self.channels) + f"; {where}.")
+
+
 def _distinct(first: ModelScore, last: ModelScore) -> list[ModelScore]:
     return [first] if last is first else [first, last]
 
 
-def _stack(records: list[Record], what: str) -> tuple[torch.Tensor, torch.Tensor]:
-    lengths = {len(r.t) for r in records}
-    if len(lengths) > 1:
-        raise DataError(f"the residual stage stacks the {what} records, which needs equal lengths; got {sorted(lengths)}. "
-                        "Cut them to one length")
-    return torch.stack([r.u for r in records]), torch.stack([r.y for r in records])
+def _signals(records: list[Record]) -> tuple:
+    """``(t, u, y)`` of the records: one batch, (time,), (records, time, ·), where they have one length; else one
+    sequence each, ``(time_i,)``, ``(1, time_i, ·)``, which the residual's fit joins in time
+    (:func:`~torchpaml.fit_chebyshev_hammerstein`)."""
+    if len({len(r.t) for r in records}) == 1:
+        return records[0].elapsed, torch.stack([r.u for r in records]), torch.stack([r.y for r in records])
+    return [r.elapsed for r in records], [r.u[None] for r in records], [r.y[None] for r in records]
+
+
+def _joined(parts) -> torch.Tensor:
+    """A batch as it is, or per-record tensors (1, time_i, ·) joined in time: the samples a mismatch counts."""
+    return parts if isinstance(parts, torch.Tensor) else torch.cat(list(parts), dim=1)
+
+
+def _apply(residual: ChebyshevHammerstein, t, u):
+    """The residual's output on one batch, or on each record (a sequence, as :func:`_signals` gives it)."""
+    if isinstance(t, torch.Tensor):
+        return residual(t, u)
+    return [residual(t_i, u_i) for t_i, u_i in zip(t, u, strict=True)]
+
+
+def _noise_like(record: Record, y_model: torch.Tensor) -> tuple[bool, float]:
+    """Whether the training residual of every output channel is noise by effect size (its cross-correlation with the
+    first input below :data:`NOISE_CORRELATION` at all but :data:`WHITE_SHARE` of the lags), and the largest share of
+    a channel's residual that is linear in the input."""
+    noise, linear_share = True, 0.0
+    for c in range(record.y.shape[1]):
+        whiteness = residual_analysis(record.u[:, 0], (record.y - y_model)[:, c])
+        bound = max(whiteness.cross_correlation_bound, NOISE_CORRELATION)
+        noise &= int((abs(whiteness.cross_correlation) > bound).sum()) <= WHITE_SHARE * len(whiteness.cross_lags)
+        linear_share = max(linear_share, whiteness.linear_share)
+    return noise, linear_share
 
 
 def hybrid_residual(step: ModelScore, train: Record | Sequence[Record], alpha: float
-                    ) -> tuple[ChebyshevHammerstein, torch.Tensor]:
+                    ) -> tuple[ChebyshevHammerstein, torch.Tensor | list[torch.Tensor]]:
     """The Chebyshev-Hammerstein residual of the paper fitted on the training residual $y - \\hat y$ of ``step``'s
     fitted model (each record from its initial state), as :func:`diagnose` fits it on its first and last rung, and
-    the model's training output $\\hat y$ (records, time, n_y). ``alpha``: the residual's domain, max $|u|$ it takes
-    (:class:`~torchpaml.DomainError` beyond). The records must have one length and grid."""
+    the model's training output $\\hat y$: (records, time, n_y) where the records have one length, else one
+    (1, time_i, n_y) per record. ``alpha``: the residual's domain, max $|u|$ it takes
+    (:class:`~torchpaml.DomainError` beyond). The records share one sampling interval (the first record's sets the
+    residual's band)."""
     train = as_records(train)
-    t = train[0].elapsed
-    residual = ChebyshevHammerstein.for_sampling(alpha, uniform_step(t))
-    u, y = _stack(train, "training")
-    y_physics = torch.cat([simulate_record(step.model, r, x0, solver=step.solver)
-                           for r, x0 in zip(train, step.train_states, strict=True)])
-    fit_chebyshev_hammerstein(residual, t, u, y - y_physics, rtol=DECISION_TOLERANCE)
+    t, u, y = _signals(train)
+    residual = ChebyshevHammerstein.for_sampling(alpha, uniform_step(train[0].elapsed), inputs=train[0].u.shape[1],
+                                                 outputs=train[0].y.shape[1])
+    outputs = [simulate_record(step.model, r, x0, solver=step.solver)
+               for r, x0 in zip(train, step.train_states, strict=True)]
+    y_physics = torch.cat(outputs) if isinstance(y, torch.Tensor) else outputs
+    target = y - y_physics if isinstance(y, torch.Tensor) else [a - b for a, b in zip(y, y_physics, strict=True)]
+    fit_chebyshev_hammerstein(residual, t, u, target, rtol=DECISION_TOLERANCE)
     return residual, y_physics
 
 
 def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alpha: float) -> HybridScore:
     """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid."""
-    t = train[0].elapsed
-    u, y = _stack(train, "training")
+    t, u, y = _signals(train)
     residual, y_physics = hybrid_residual(step, train, alpha)
     with torch.no_grad():
-        hybrid_train = mismatch(y, y_physics + residual(t, u))
-        v_u, v_y = _stack(validation, "validation")
-        v_t = validation[0].elapsed
-        v_physics = torch.stack(step.validation_outputs)
-        hybrid_validation = mismatch(v_y, v_physics + residual(v_t, v_u))
-    whiteness = residual_analysis(u[0, :, 0], (y - y_physics)[0, :, 0])
-    bound = max(whiteness.cross_correlation_bound, NOISE_CORRELATION)
-    noise = int((abs(whiteness.cross_correlation) > bound).sum()) <= WHITE_SHARE * len(whiteness.cross_lags)
+        hybrid_train = mismatch(_joined(y), _joined(y_physics) + _joined(_apply(residual, t, u)))
+        v_t, v_u, v_y = _signals(validation)
+        v_physics = _joined([o[None] for o in step.validation_outputs])
+        hybrid_validation = mismatch(_joined(v_y), v_physics + _joined(_apply(residual, v_t, v_u)))
+    noise, linear_share = _noise_like(train[0], _joined(y_physics)[0, :len(train[0].t)])
     adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
-                               residual_white=noise, linear_share=whiteness.linear_share)
+                               residual_white=noise, linear_share=linear_share)
     return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy)
 
 
@@ -247,17 +298,14 @@ def diagnose(
     ladder = model_ladder(physics, candidates, train, validation, ranker=ranker, initial_state=initial_state,
                           start_states=start_states, deadline=deadline)
     base = ladder.steps[0]
-    record = validation[0]
-    y_model = base.validation_outputs[0]
-    residuals = residual_analysis(record.u[:, 0], (record.y - y_model)[:, 0])
-    by_input = error_by_amplitude(record.u, record.y, y_model)
-    by_output = error_by_amplitude(record.y, record.y, y_model)
+    channels = channel_scores(base, ladder.final, validation)
     alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
     log.info("fitting the Chebyshev residual on top")
     with ThreadPoolExecutor(2) as pool:
         hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha), _distinct(base, ladder.final)))
     found = None if discovery is None else discovery.discover(ladder.rankings[-1], train, validation, deadline)
-    return Diagnosis(ladder, residuals, by_input, by_output, hybrids, validation, found)
+    first = channels[0]
+    return Diagnosis(ladder, first.residuals, first.by_input, first.by_output, hybrids, validation, found, channels)
 
 
 def _stages(ranker: Ranker | None, discovery: Discoverer | None, legacy: dict) -> tuple[Ranker, Discoverer | None]:

@@ -29,7 +29,7 @@ class Engines:
     reference of the zero-strength check): the tangent-linear model around a linear base for an effect
     without states of its own, else secants by the fixed-step solver the base was fitted with."""
 
-    def __init__(self, base: AbstractPhysics, train: list[Record], fit: PhysicsEstimate, scale: float):
+    def __init__(self, base: AbstractPhysics, train: list[Record], fit: PhysicsEstimate, scale: torch.Tensor):
         self.base, self.train, self.initial_states, self.scale = base, train, fit.initial_states, scale
         self.solver = engine_solver(fit.solver)
         self.built: dict[str, tuple[TangentLinear | Secant, torch.Tensor] | None] = {}
@@ -87,7 +87,7 @@ def share(projected: torch.Tensor, energy: float, r: torch.Tensor) -> float:
     return float(projected @ r) ** 2 / (energy * float(r @ r))
 
 
-def first_order(extended: AbstractPhysics, name: str, fit: PhysicsEstimate, scale: float, probe: float,
+def first_order(extended: AbstractPhysics, name: str, fit: PhysicsEstimate, scale: torch.Tensor, probe: float,
                  reference: torch.Tensor, engine: TangentLinear | Secant) -> tuple[float, int, float, torch.Tensor]:
     r"""(score, order q, first-order strength, move) of the effect whose strength parameter is ``name``
     (module docstring).
@@ -134,7 +134,7 @@ def first_order(extended: AbstractPhysics, name: str, fit: PhysicsEstimate, scal
 
 
 def by_promise(base, candidate: AbstractEffect, train: list[Record], fit: PhysicsEstimate, delta: float,
-                reference: torch.Tensor, engine: TangentLinear | Secant, scale: float) -> list[tuple[dict[str, float], nn.Module]]:
+                reference: torch.Tensor, engine: TangentLinear | Secant, scale: torch.Tensor) -> list[tuple[dict[str, float], nn.Module]]:
     r"""``(setting, base + candidate)`` for each of the candidate's starts (:meth:`~AbstractEffect.starts`), the most
     promising first: by the unsigned share of the residual that one probe at strength ``delta`` explains,
     $(\tilde d^\top r)^2 / (\|\tilde d\|^2 \|r\|^2)$ with $d$ taken against the base's output. One probe per start

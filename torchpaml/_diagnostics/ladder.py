@@ -16,6 +16,7 @@ import torch
 
 from torchpaml._data import Record
 from torchpaml._diagnostics.ranker import Ranker
+from torchpaml._diagnostics.ranking import placed
 from torchpaml._diagnostics.results import ModelScore, Ranking
 from torchpaml._diagnostics.scoring import as_records
 from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
@@ -63,6 +64,7 @@ def model_ladder(
     """
     train, validation = as_records(train), as_records(validation)
     initial_state = as_initial_state(initial_state)
+    candidates = placed(physics, candidates)  # a force on each degree of freedom: each rung's candidates by name
     ranking = ranker.rank(physics, candidates, train, validation, initial_state=initial_state,
                           start_states=start_states, deadline=deadline)
     steps, added, rankings = [ranking.baseline], [], [ranking]

@@ -52,6 +52,7 @@ import torch
 
 from torchpaml._budget import REFIT_BUDGET, Budget
 from torchpaml._data import Record
+from torchpaml._metrics import sample_scales
 from torchpaml._diagnostics.first_order import Engines, by_promise, first_order
 from torchpaml._diagnostics.refits import Refits, cannot_pass, free_shape
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
@@ -149,9 +150,18 @@ def rank_missing_effects(
     return Ranking(baseline, refitted + rest, rule, skipped, initial_state)
 
 
+def placed(physics: AbstractPhysics, candidates: Sequence[AbstractEffect]) -> list[AbstractEffect]:
+    """The candidates with each force on every degree of freedom of ``physics``' base it may act on: one candidate
+    per velocity (``coulomb_friction_v1``, ``coulomb_friction_v2``) where it has several, else as given."""
+    base_model = physics.without_effects()
+    return [effect for candidate in candidates for effect in candidate.placements(base_model)]
+
+
 def _applicable(physics: AbstractPhysics, candidates: Sequence[AbstractEffect]
                 ) -> tuple[list[AbstractEffect], dict[str, str]]:
-    """The candidates that apply to ``physics``, and why each of the others does not; checked before any fit."""
+    """The candidates that apply to ``physics``, each force on every degree of freedom it may act on
+    (:meth:`~torchpaml.AbstractEffect.placements`), and why each of the others does not; checked before any fit."""
+    candidates = placed(physics, candidates)
     names = [c.name for c in candidates]
     if len(set(names)) != len(names):
         raise ConfigurationError(f"candidate effects must have distinct names, got {names}")
@@ -172,7 +182,7 @@ def _scored(base: AbstractPhysics, candidates: list[AbstractEffect], train: list
             probe: float) -> tuple[list[EffectEvidence], dict[str, tuple]]:
     """Each candidate's first-order evidence, and, for each one scored, ``(base + candidate, its strength's name, the
     first-order move, its bounds)`` for its refit."""
-    scale = float(torch.sqrt(sum(torch.sum(r.y**2) for r in train)))
+    scale = sample_scales([r.y for r in train])  # the fit's: its residual and Jacobian are in these units
     engines = Engines(base, train, fit, scale)
     entries, extended_models = [], {}
     for candidate in candidates:

@@ -141,11 +141,11 @@ def _training_mismatch(physics: AbstractPhysics, train: list[Record], states: li
     :class:`~torchpaml.WarmStart` of ``warm``."""
     solver = engine_solver(solver)
     try:
-        outputs = [simulate_record(physics, r, x0, solver=solver, warm=w).flatten()
+        outputs = [simulate_record(physics, r, x0, solver=solver, warm=w)[0]
                    for r, x0, w in zip(train, states or [None] * len(train), warm, strict=True)]
     except SimulationError:
         return math.inf
-    return mismatch(torch.cat([r.y.flatten() for r in train]), torch.cat(outputs))
+    return mismatch(torch.cat([r.y for r in train]), torch.cat(outputs))
 
 
 def free_shape(entry: EffectEvidence, train: list[Record], validation: list[Record], rule: SelectionRule,

@@ -21,6 +21,7 @@ LTI simulation). Other residuals (the MLP baselines) are fitted by gradient desc
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
@@ -62,27 +63,53 @@ def project(regressors: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tenso
     return (scaled[:, 0] / scale).reshape(n, width), (A @ scaled).reshape(target.shape)
 
 
+def _in_time(parts: torch.Tensor | Sequence[torch.Tensor]) -> torch.Tensor:
+    """A batch as it is, or records of unequal length (1, time_i, ...) joined in time, (1, Σ time_i, ...)."""
+    return parts if isinstance(parts, torch.Tensor) else torch.cat(list(parts), dim=1)
+
+
+def _per_record(method, t, u) -> torch.Tensor:
+    """``method(t, u)`` of one batch, or of each record (each filter from rest) joined in time."""
+    if isinstance(t, torch.Tensor):
+        return method(t, u)
+    return _in_time([method(t_i, u_i) for t_i, u_i in zip(t, u, strict=True)])
+
+
 def fit_chebyshev_hammerstein(
     residual: ChebyshevHammerstein,
-    t: torch.Tensor,
-    u: torch.Tensor,
-    target: torch.Tensor,
+    t: torch.Tensor | Sequence[torch.Tensor],
+    u: torch.Tensor | Sequence[torch.Tensor],
+    target: torch.Tensor | Sequence[torch.Tensor],
     *,
     max_iter: int = 100,
     rtol: float = CHANGE_TOLERANCE,
 ) -> ResidualEstimate:
-    """Fit ``residual`` in place to ``target`` = y − ŷ, (batch, time, 1), by variable projection; the pole search
-    stops when a step changes the squared mismatch by less than ``rtol`` of it (:data:`CHANGE_TOLERANCE`)."""
+    """Fit ``residual`` in place to ``target`` = y − ŷ, (batch, time, outputs), by variable projection; the pole search
+    stops when a step changes the squared mismatch by less than ``rtol`` of it (:data:`CHANGE_TOLERANCE`).
+
+    Records of unequal length come as sequences, one ``t`` (time_i,), ``u`` (1, time_i, n_u) and ``target``
+    (1, time_i, outputs) per record: each record's filter starts from rest, and one least squares takes every
+    sample (for records of one length, the same rows as their batch). With several outputs each has its own
+    numerators, projected on its own target divided by that target's norm, so that every output weighs the same in
+    the pole search (the coefficients are then scaled back)."""
     poles = residual.pole_parameters()
+    target = _in_time(target)
+    scales = torch.linalg.vector_norm(target.detach().reshape(-1, target.shape[-1]), dim=0).clamp(min=1e-300)
+    scaled = target if residual.outputs == 1 else target / scales
+
+    def projections() -> list[tuple[torch.Tensor, torch.Tensor]]:
+        regressors = _per_record(residual.regressors, t, u)
+        return [project(regressors, scaled[..., o]) for o in range(residual.outputs)]
 
     def projected():
-        return project(residual.regressors(t, u), target[..., 0])[1][..., None]
+        return torch.stack([fitted for _, fitted in projections()], dim=-1)
 
-    _, iterations = minimize_output_error(projected, target, poles, max_iter=max_iter, rtol=rtol)
+    _, iterations = minimize_output_error(projected, scaled, poles, max_iter=max_iter, rtol=rtol)
     with torch.no_grad():
-        coefficients, _ = project(residual.regressors(t, u), target[..., 0])
-        residual.set_coefficients(coefficients)
-        unexplained = mismatch(target, residual(t, u))
+        coefficients = [c for c, _ in projections()]
+        residual.set_coefficients(coefficients[0] if residual.outputs == 1 else
+                                  torch.stack(coefficients) * scales[:, None, None])
+        unexplained = mismatch(target, _per_record(residual, t, u))
     return ResidualEstimate(unexplained, iterations, "variable-projection")
 
 

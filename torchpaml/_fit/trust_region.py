@@ -1,7 +1,9 @@
 r"""The least-squares problem of :func:`~torchpaml.fit_physics`, as ``scipy.optimize.least_squares`` asks for it.
 
 The unknowns $x$ are the raw values $\rho$ of the learnable parameters, then (with ``Estimate()``) each record's
-initial state; the residual is $r = (y - \hat y)/\|y\|$ over all records stacked, and its Jacobian comes from
+initial state; the residual is $r = (y - \hat y)/s$ over all records stacked, $s$ each output channel's scale
+(:func:`~torchpaml._metrics.channel_scales`: $\|y\|$ for one channel, so that $\|r\|$ is the
+:func:`~torchpaml.mismatch`), and its Jacobian comes from
 :func:`~torchpaml._data.simulation.record_jacobian`, each record's initial-state columns in its own block.
 """
 
@@ -18,6 +20,7 @@ from torchpaml._budget import Budget
 from torchpaml._data import Record
 from torchpaml._data.simulation import record_jacobian
 from torchpaml._errors import SimulationError
+from torchpaml._metrics import sample_scales
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._simulate.sensitivity import raw_parameters
 from torchpaml._simulate.solvers import FixedStep
@@ -37,7 +40,7 @@ class TrustRegionProblem:
         self.solver, self.warm, self.budget = solver, warm, budget
         self.raw = list(raw_parameters(physics, names).values())
         self.targets = [r.y[None] for r in records]
-        self.scale = float(torch.sqrt(sum(torch.sum(y**2) for y in self.targets)))
+        self.scale = sample_scales(self.targets)  # each sample's channel scale: the residual is the mismatch's
         self.simulations, self.cost = 0, math.inf  # the lowest cost so far
         self._memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
@@ -92,7 +95,7 @@ class TrustRegionProblem:
             return np.full(self.samples, np.inf)
 
     def outputs(self, residual: np.ndarray) -> list[torch.Tensor]:
-        """Each record's output (time, n_output) from the residual $r = (y - \\hat y)/\\|y\\|$."""
+        """Each record's output (time, n_output) from the residual $r = (y - \\hat y)/s$."""
         parts = (torch.from_numpy(residual) * self.scale).split([y.numel() for y in self.targets])
         return [y[0] - part.reshape(y.shape[1:]) for y, part in zip(self.targets, parts, strict=True)]
 
@@ -112,4 +115,4 @@ class TrustRegionProblem:
             if self.estimated:
                 block[:, i * n:(i + 1) * n] = J[:, p:]
             columns.append(torch.cat([J[:, :p], block], dim=1))
-        return (residual / self.scale).numpy(), (-torch.cat(columns) / self.scale).numpy()
+        return (residual / self.scale).numpy(), (-torch.cat(columns) / self.scale[:, None]).numpy()

@@ -39,7 +39,8 @@ from torch import nn
 from torch.nn.utils import parametrize
 
 from torchpaml._errors import ConfigurationError
-from torchpaml._parameters import Interval, describe_parameters, format_table, with_uncertainty
+from torchpaml._parameters import (Interval, copied_with_own_parametrizations, describe_parameters, format_table,
+                                  with_uncertainty)
 
 __all__ = ["AbstractPhysics", "SecondOrderPhysics", "complete_state", "state_vector"]
 
@@ -79,6 +80,14 @@ class AbstractPhysics(nn.Module):
     state_names: tuple[str, ...] = ()
     input_dim: int = 1
     output_dim: int = 1
+    #: The mechanical degrees of freedom, as (position, velocity) pairs of state names, where a force effect may
+    #: act (``CoulombFriction().on("v2")``): ``(("x1", "v1"), ("x2", "v2"))`` for a two-mass chain. Default none:
+    #: only effects that name their states (rates) and maps apply.
+    degrees_of_freedom: tuple[tuple[str, str], ...] = ()
+
+    def __deepcopy__(self, memo: dict) -> AbstractPhysics:
+        """A copy that reads its own parameter values (:func:`~torchpaml._parameters.copied_with_own_parametrizations`)."""
+        return copied_with_own_parametrizations(self, memo)
 
     @property
     def state_dim(self) -> int:
@@ -211,6 +220,7 @@ class SecondOrderPhysics(AbstractPhysics):
     r"""Mechanical physics with state (position $x$, velocity $v$): $\dot x = v$, $\dot v = a(t, x, v, u)$, $y = x$."""
 
     state_names = ("position", "velocity")
+    degrees_of_freedom = (("position", "velocity"),)
 
     def acceleration(self, t: torch.Tensor, x: torch.Tensor, v: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         """$a(t, x, v, u)$ with x, v, u of shape (batch,) -> (batch,)."""

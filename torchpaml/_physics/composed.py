@@ -81,7 +81,7 @@ class ComposedModel(AbstractPhysics):
     def derivative(self, t, x, u):
         x, own = self._own(x)
         mapped = self._mapped(u, own)
-        if isinstance(self.base, SecondOrderPhysics):  # forces apply there only (AbstractEffect.applies_to)
+        if isinstance(self.base, SecondOrderPhysics):  # its one degree of freedom: forces add to the acceleration
             pos, vel = x[..., 0], x[..., 1]
             acceleration = self.base.acceleration(t, pos, vel, mapped[..., 0])
             for name, effect in self.effects.items():
@@ -90,16 +90,37 @@ class ComposedModel(AbstractPhysics):
                     acceleration = acceleration + force
             dx = state_vector([vel, acceleration])
         else:
-            dx = self.base.derivative(t, x, mapped)
+            dx = self.base.derivative(t, x, mapped) + self._forces(x, u, own)
         for name, effect in self.effects.items():
             extra = effect.rate(self.base, x, u, *own[name])
             if extra is not None:
                 dx = dx + extra
-        rates = [effect.state_rate(self.base, x, own[name][0], u)
+        rates = [effect.state_rate(self.base, self._seen(effect, x), own[name][0], u)
                  for name, effect in self.effects.items() if effect.own_states]
         if not rates:
             return dx
         return state_vector([*dx.unbind(-1), *(column for rate in rates for column in rate.unbind(-1))])
+
+    def _forces(self, x: torch.Tensor, u: torch.Tensor, own: dict) -> torch.Tensor | float:
+        """The forces on the degrees of freedom of a base other than a :class:`SecondOrderPhysics`, (batch, n_base):
+        each on its velocity's equation (:meth:`~torchpaml.AbstractEffect.degree_of_freedom`)."""
+        total = 0.0
+        for name, effect in self.effects.items():
+            if not effect.is_force:
+                continue
+            i, j = effect.degree_of_freedom(self.base)
+            force = effect.force(self.base, x[..., i], x[..., j], u[..., 0], *own[name])
+            velocity = self.base.state_names[j]
+            total = total + effect.on_state(self.base, x, {velocity: force})
+        return total
+
+    def _seen(self, effect: AbstractEffect, x: torch.Tensor) -> torch.Tensor:
+        """The base's states as an effect with memory reads them: a force's degree of freedom as the columns
+        (position, velocity), else every state."""
+        if not effect.is_force or isinstance(self.base, SecondOrderPhysics):
+            return x
+        i, j = effect.degree_of_freedom(self.base)
+        return torch.stack([x[..., i], x[..., j]], dim=-1)
 
     def acceleration(self, t, x, v, u):
         """$\\ddot x$ of a second-order base with the effects, x, v, u of shape (batch,) -> (batch,); effects with own

@@ -3,12 +3,15 @@ an effect carries of its own. The library's effects: :mod:`~torchpaml._physics.e
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import torch
 from torch import nn
 
-from torchpaml._physics.base import SecondOrderPhysics, state_vector
+from torchpaml._errors import ConfigurationError
+from torchpaml._parameters import copied_with_own_parametrizations
+from torchpaml._physics.base import state_vector
 
 __all__ = ["AbstractEffect", "EffectState"]
 
@@ -36,6 +39,13 @@ class AbstractEffect(nn.Module):
     Defaults: no force, no rate, identity maps. ``physics`` is the base model, for effects that scale
     with its parameters. :meth:`applies_to` says why an effect cannot be added to a physics.
 
+    **Where a force acts.** A force acts on one mechanical degree of freedom of the physics
+    (:attr:`~torchpaml.AbstractPhysics.degrees_of_freedom`, a (position, velocity) pair): ``force`` gets that
+    position and velocity, its acceleration enters that velocity's equation, and an effect with memory sees the
+    pair as the columns (position, velocity) of ``x`` in :meth:`state_rate`. By default the physics' only degree of
+    freedom (``v`` of second-order physics); ``effect.on("v2")`` names another (:meth:`on`), and the ranking tries
+    a force on each degree of freedom of a physics with several (:meth:`placements`).
+
     **Effects with memory** declare :attr:`own_states` (:class:`EffectState`) and give their dynamics in
     :meth:`state_rate`; the composed model integrates them with the physics. Their hooks then receive the
     effect's states ``z`` (batch, k) as one more, last argument: ``force(physics, x, v, u, z)``,
@@ -51,6 +61,45 @@ class AbstractEffect(nn.Module):
     shape: tuple[str, ...] = ()
     #: the effect's own states, appended to the physics' state vector (module docstring of ``composed``)
     own_states: tuple[EffectState, ...] = ()
+    #: the velocity state a force acts on (:meth:`on`); ``None``: the physics' only degree of freedom
+    acts_on: str | None = None
+
+    def __deepcopy__(self, memo: dict) -> AbstractEffect:
+        """A copy that reads its own parameter values (:func:`~torchpaml._parameters.copied_with_own_parametrizations`)."""
+        return copied_with_own_parametrizations(self, memo)
+
+    @property
+    def is_force(self) -> bool:
+        """Whether the effect adds a force (it overrides :meth:`force`), which acts on a degree of freedom."""
+        return type(self).force is not AbstractEffect.force
+
+    def on(self, velocity: str) -> AbstractEffect:
+        """A copy of this force acting on the degree of freedom whose velocity state is ``velocity``, named
+        ``<name>_<velocity>`` (``CoulombFriction().on("v2")`` is ``coulomb_friction_v2``, its parameters
+        ``coulomb_friction_v2.Fc``, ...)."""
+        if not self.is_force:
+            raise ConfigurationError(f"{self.name} is not a force: it acts where its own equations say, not on a "
+                                     f"degree of freedom; add it as it is")
+        if self.acts_on is not None:
+            raise ConfigurationError(f"{self.name} already acts on {self.acts_on}; call on() on the effect itself")
+        placed = copy.deepcopy(self)
+        placed.acts_on, placed.name = velocity, f"{self.name}_{velocity}"
+        placed.equation = f"{self.equation} on {velocity}"
+        return placed
+
+    def placements(self, physics: nn.Module) -> list[AbstractEffect]:
+        """The effect on each degree of freedom of ``physics`` it may act on: one copy per velocity (:meth:`on`) for a
+        force not yet placed on a physics with several; else the effect itself."""
+        dofs = physics.degrees_of_freedom
+        if not self.is_force or self.acts_on is not None or len(dofs) < 2:
+            return [self]
+        return [self.on(velocity) for _, velocity in dofs]
+
+    def degree_of_freedom(self, physics: nn.Module) -> tuple[int, int]:
+        """The indices of the (position, velocity) states of ``physics`` this force acts on."""
+        dofs = physics.degrees_of_freedom
+        pair = dofs[0] if self.acts_on is None else next(p for p in dofs if p[1] == self.acts_on)
+        return physics.state_names.index(pair[0]), physics.state_names.index(pair[1])
 
     @property
     def strength(self) -> str:
@@ -59,13 +108,29 @@ class AbstractEffect(nn.Module):
 
     def applies_to(self, physics: nn.Module) -> str | None:
         """Why this effect cannot be added to ``physics`` (the base model), or ``None`` if it can."""
-        if type(self).force is not AbstractEffect.force and not isinstance(physics, SecondOrderPhysics):
-            return (f"{self.name} is a force, which acts on second-order (mechanical) physics with state (position, "
-                    f"velocity); {physics.display_name} is not a SecondOrderPhysics")
+        if self.is_force:
+            reason = self._placement_problem(physics)
+            if reason is not None:
+                return reason
         missing = [s for s in self.states if s not in physics.state_names]
         if missing:
             return (f"{self.name} acts on the state(s) {missing}, which {physics.display_name} does not have "
                     f"(its states: {list(physics.state_names)})")
+        return None
+
+    def _placement_problem(self, physics: nn.Module) -> str | None:
+        dofs = physics.degrees_of_freedom
+        if not dofs:
+            return (f"{self.name} is a force, which acts on a mechanical degree of freedom; {physics.display_name} "
+                    f"declares none (a SecondOrderPhysics has one; another physics lists its (position, velocity) "
+                    f"state pairs in degrees_of_freedom)")
+        velocities = [velocity for _, velocity in dofs]
+        if self.acts_on is None and len(dofs) > 1:
+            return (f"{self.name} is a force and {physics.display_name} has {len(dofs)} degrees of freedom: name the "
+                    f"one it acts on, {' or '.join(f'{self.name}.on({v!r})' for v in velocities)}")
+        if self.acts_on is not None and self.acts_on not in velocities:
+            return (f"{self.name} acts on {self.acts_on!r}, which is no velocity of {physics.display_name}'s degrees "
+                    f"of freedom {velocities}")
         return None
 
     def force(self, physics: nn.Module, x: torch.Tensor, v: torch.Tensor, u: torch.Tensor, z: torch.Tensor | None = None

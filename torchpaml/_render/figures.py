@@ -216,17 +216,29 @@ def discovery_figure(discovery: Discovery) -> Figure:
     return fig
 
 
+def _channel_figures(diagnosis: Diagnosis) -> dict[str, Figure]:
+    """``compare``, ``residual_analysis`` and ``error_by_amplitude`` of each output channel: under these names for
+    one output, with the channel's name appended (``compare_y2``) for several."""
+    record, several = diagnosis.validation[0], len(diagnosis.channels) > 1
+    figures = {}
+    for c, channel in enumerate(diagnosis.channels):
+        suffix, scores = (f"_{channel.name}", (channel.physics, channel.final)) if several else ("", None)
+        outputs = {f"{s.name} ({100 * (s.nrmse_validation if scores is None else score):.2f} %)":
+                   s.validation_outputs[0][:, c] for s, score in zip(diagnosis.compared_models, scores or (0, 0))}
+        where = f"output {channel.name}, " if several else ""
+        figures[f"compare{suffix}"] = overlay_figure(record.t, record.y[:, c], outputs,
+                                                     f"measured vs models, {where}validation record {record.name!r}")
+        figures[f"residual_analysis{suffix}"] = residual_analysis_figure(channel.residuals)
+        figures[f"error_by_amplitude{suffix}"] = amplitude_figure(channel.by_input, channel.by_output)
+    return figures
+
+
 def diagnosis_figures(diagnosis: Diagnosis) -> dict[str, Figure]:
     """Name -> figure of a :class:`~torchpaml.Diagnosis`: ``compare``, ``residual_analysis``,
-    ``error_by_amplitude``, ``ranking``, ``ladder``, and ``discovery`` when it ran."""
-    record = diagnosis.validation[0]
-    outputs = {f"{s.name} ({100 * s.nrmse_validation:.2f} %)": s.validation_outputs[0]
-               for s in diagnosis.compared_models}
+    ``error_by_amplitude`` (for each output channel, ``compare_y1``, ``compare_y2``, ..., where there are several),
+    ``ranking``, ``ladder``, and ``discovery`` when it ran."""
     figures = {
-        "compare": overlay_figure(record.t, record.y[:, 0], outputs,
-                                  f"measured vs models, validation record {record.name!r}"),
-        "residual_analysis": residual_analysis_figure(diagnosis.residuals),
-        "error_by_amplitude": amplitude_figure(diagnosis.by_input, diagnosis.by_output),
+        **_channel_figures(diagnosis),
         "ranking": ranking_figure(diagnosis.ranking),
         "ladder": ladder_figure(diagnosis.ladder,
                                 None if diagnosis.discovery is None else diagnosis.discovery.discovered),

@@ -126,6 +126,13 @@ def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
                       _pct(h["physics_nrmse_validation"]), _pct(h["nrmse_validation"]), h["message"]]
                      for h in content["hybrid"]])
     discovery = _discovery_section(content["discovery"])
+    channels = content["where_it_fails"]["channels"]
+    per_output = "" if len(channels) < 2 else (
+        f"<p>Per output channel (validation): the missing effect shows most at output "
+        f"<b>{html.escape(content['where_it_fails']['shows_most'])}</b>.</p>"
+        + _table(["output", "physics %", "final %", "physics RMSE", "final RMSE"],
+                 [[c["name"], _pct(c["nrmse_validation_physics"]), _pct(c["nrmse_validation_final"]),
+                   f"{c['rmse_validation_physics']:.4g}", f"{c['rmse_validation_final']:.4g}"] for c in channels]))
     if content["undecided"]:
         ranking += "<p><b>Undecided</b> (refits stopped over budget; the verdict names the option that decides them):</p>"
         ranking += _table(["model", "effect", "seconds"],
@@ -142,7 +149,7 @@ table{{border-collapse:collapse}} img{{max-width:100%}}</style></head><body>
 <h1>Diagnosis of {html.escape(base['model'])}</h1>
 <p><b>Verdict.</b> {html.escape(content['verdict'])}</p>
 <h2>1. Compare</h2><p>Fitted physics: training mismatch {_pct(base['nrmse_train'])} %, validation
-{_pct(base['nrmse_validation'])} %.</p>
+{_pct(base['nrmse_validation'])} %.</p>{per_output}
 <h2>2. Which effect is missing</h2>{ranking}
 <h2>3. Model ladder</h2>{ladder}<p>The final model, with standard errors and 95 % intervals from the
 Jacobian at the optimum (valid for a white residual):</p>{final}

@@ -135,6 +135,12 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict:
             "confidence": diagnosis.residuals.confidence,
             "by_input_amplitude": _bins(diagnosis.by_input),
             "by_output_amplitude": _bins(diagnosis.by_output),
+            "channels": [{"name": c.name, "nrmse_validation_physics": c.physics, "nrmse_validation_final": c.final,
+                          "rmse_validation_physics": c.rmse_physics, "rmse_validation_final": c.rmse_final,
+                          "input_cross_correlation_lags_outside": c.residuals.cross_correlation_outside.tolist(),
+                          "by_input_amplitude": _bins(c.by_input), "by_output_amplitude": _bins(c.by_output)}
+                         for c in diagnosis.channels],
+            "shows_most": diagnosis.shows_most.name,
         },
         "hybrid": [hybrid_to_dict(h) for h in diagnosis.hybrids],
         "discovery": None if diagnosis.discovery is None else discovery_to_dict(diagnosis.discovery),

@@ -30,7 +30,11 @@ $[-1, 1]$, $T_{13}$ grows like $(2x)^{13}/2$ (already 140 at $x = 1.2$), so the 
 extrapolate wildly and the orthogonality argument (which is about inputs of amplitude $\alpha$)
 would no longer hold. Pick $\alpha \ge \max|u|$.
 
-Shape: ``u`` (batch, time, 1) on a uniform grid -> ``r`` (batch, time, 1).
+*Several channels.* With ``inputs`` > 1 the features are the odd polynomials of each input, $T_{2k+1}(u_i/\alpha)$
+($n \cdot$ ``inputs`` of them, no products across inputs, so the orthogonality argument holds input by input);
+with ``outputs`` > 1 each output channel has its own numerators and direct terms over one shared denominator.
+
+Shape: ``u`` (batch, time, inputs) on a uniform grid -> ``r`` (batch, time, outputs).
 """
 
 from __future__ import annotations
@@ -79,6 +83,9 @@ class ChebyshevHammerstein(AbstractResidual):
         bandwidth: $\Omega$ in rad/s, bound on the decay rates and frequencies of the poles.
         frequencies: initial natural frequencies of the complex pole pairs, rad/s
             (default: geometric from 1 to 6 rad/s).
+        inputs: input channels; each has its own polynomials of $u_i/\alpha$.
+        outputs: output channels; each has its own numerators over the shared denominator. The coefficients are
+            (features, m + 1) for one output and (outputs, features, m + 1) for several.
 
     The numerators start at zero, so a fresh residual is the zero model $\mathcal R^{\gamma_0}$.
     """
@@ -93,6 +100,8 @@ class ChebyshevHammerstein(AbstractResidual):
         min_decay: float = MIN_DECAY,
         bandwidth: float = BANDWIDTH,
         frequencies: list[float] | None = None,
+        inputs: int = 1,
+        outputs: int = 1,
     ):
         super().__init__()
         if not alpha > 0:
@@ -101,9 +110,11 @@ class ChebyshevHammerstein(AbstractResidual):
             raise ConfigurationError(
                 f"need 0 < min_decay < decay < bandwidth, got min_decay={min_decay}, decay={decay}, bandwidth={bandwidth}"
             )
-        if n < 1 or order < 1:
-            raise ConfigurationError(f"need n >= 1 and order >= 1, got n={n}, order={order}")
+        if n < 1 or order < 1 or inputs < 1 or outputs < 1:
+            raise ConfigurationError(f"need n, order, inputs and outputs >= 1, got n={n}, order={order}, "
+                                     f"inputs={inputs}, outputs={outputs}")
         self.alpha, self.n, self.order = float(alpha), int(n), int(order)
+        self.inputs, self.outputs = int(inputs), int(outputs)
         self.min_decay, self.bandwidth = float(min_decay), float(bandwidth)
         self.degrees = [2 * k + 1 for k in range(1, n + 1)]
         pairs = order // 2
@@ -117,11 +128,12 @@ class ChebyshevHammerstein(AbstractResidual):
         decay_share = torch.full((pairs + order % 2,), (decay - min_decay) / (bandwidth - min_decay), **f64)
         self.decay_logit = nn.Parameter(torch.logit(decay_share))
         self.frequency_logit = nn.Parameter(torch.logit(torch.tensor(frequencies, **f64) / bandwidth))
-        self.numerator = nn.Parameter(torch.zeros(n, order, **f64))
-        self.direct = nn.Parameter(torch.zeros(n, **f64))
+        per_output = () if outputs == 1 else (outputs,)
+        self.numerator = nn.Parameter(torch.zeros(*per_output, n * inputs, order, **f64))
+        self.direct = nn.Parameter(torch.zeros(*per_output, n * inputs, **f64))
 
     @classmethod
-    def for_sampling(cls, alpha: float, h: float) -> ChebyshevHammerstein:
+    def for_sampling(cls, alpha: float, h: float, inputs: int = 1, outputs: int = 1) -> ChebyshevHammerstein:
         r"""The default residual with every rate (decay, margin, bandwidth, initial frequencies) scaled by
         $s = \min\big(1, \pi / (2 h \Omega)\big)$: the default band where the sampling interval ``h`` (s) resolves
         it, else the same band shrunk until $\Omega$ is half the Nyquist frequency $\pi/h$. Beyond Nyquist every
@@ -130,7 +142,7 @@ class ChebyshevHammerstein(AbstractResidual):
         cascaded tanks, sampled every 4 s)."""
         scale = min(1.0, math.pi / (2 * h * BANDWIDTH))
         return cls(alpha, decay=scale * DECAY, min_decay=scale * MIN_DECAY, bandwidth=scale * BANDWIDTH,
-                   frequencies=[scale * f for f in _default_frequencies(ORDER)])
+                   frequencies=[scale * f for f in _default_frequencies(ORDER)], inputs=inputs, outputs=outputs)
 
     # -- structure ---------------------------------------------------------------------------
     def denominator(self) -> torch.Tensor:
@@ -165,7 +177,11 @@ class ChebyshevHammerstein(AbstractResidual):
         return torch.stack(pairs)
 
     def features(self, u: torch.Tensor) -> torch.Tensor:
-        r"""$T_{2k+1}(u/\alpha)$, u (batch, time, 1) -> (batch, time, n); raises DomainError if $|u| > \alpha$."""
+        r"""$T_{2k+1}(u_i/\alpha)$, u (batch, time, inputs) -> (batch, time, n * inputs), input by input; raises
+        DomainError if $|u| > \alpha$."""
+        if u.shape[-1] != self.inputs:
+            raise DomainError(f"the residual takes {self.inputs} input channel(s), got {u.shape[-1]}; build it with "
+                              f"inputs={u.shape[-1]}")
         peak = float(u.detach().abs().max()) if u.numel() else 0.0
         if peak > self.alpha * (1 + 1e-9):
             raise DomainError(
@@ -173,7 +189,9 @@ class ChebyshevHammerstein(AbstractResidual):
                 f"residual; build it with alpha >= {peak:.6g} (e.g. ChebyshevHammerstein(alpha={peak:.4g})) or "
                 "scale the input"
             )
-        return chebyshev_t(u[..., 0] / self.alpha, self.degrees)
+        if self.inputs == 1:
+            return chebyshev_t(u[..., 0] / self.alpha, self.degrees)
+        return torch.cat([chebyshev_t(u[..., i] / self.alpha, self.degrees) for i in range(self.inputs)], dim=-1)
 
     def regressors(self, t: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         r"""Columns that $r$ is linear in: (batch, time, n, m + 1) = states $s^j/D(s)[T_{2k+1}]$, then $T_{2k+1}$."""
@@ -192,17 +210,20 @@ class ChebyshevHammerstein(AbstractResidual):
         return torch.cat([states, phi[..., None]], dim=-1)
 
     def coefficients(self) -> torch.Tensor:
-        """The linear parameters as (n, m + 1): numerator $c_{k,0..m-1}$ then direct term $d_k$."""
-        return torch.cat([self.numerator, self.direct[:, None]], dim=1)
+        """The linear parameters as (features, m + 1), or (outputs, features, m + 1) for several outputs: numerator
+        $c_{k,0..m-1}$ then direct term $d_k$."""
+        return torch.cat([self.numerator, self.direct[..., None]], dim=-1)
 
     def set_coefficients(self, coefficients: torch.Tensor) -> None:
-        """Assign (n, m + 1) linear parameters (inverse of :meth:`coefficients`)."""
+        """Assign the linear parameters (inverse of :meth:`coefficients`)."""
         with torch.no_grad():
-            self.numerator.copy_(coefficients[:, : self.order])
-            self.direct.copy_(coefficients[:, self.order])
+            self.numerator.copy_(coefficients[..., : self.order])
+            self.direct.copy_(coefficients[..., self.order])
 
     def forward(self, t: torch.Tensor, u: torch.Tensor, y_physics: torch.Tensor | None = None) -> torch.Tensor:
-        return torch.einsum("btkj,kj->bt", self.regressors(t, u), self.coefficients())[..., None]
+        if self.outputs == 1:
+            return torch.einsum("btkj,kj->bt", self.regressors(t, u), self.coefficients())[..., None]
+        return torch.einsum("btkj,okj->bto", self.regressors(t, u), self.coefficients())
 
 
 def _poly_mul(p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:

@@ -1,7 +1,7 @@
 """``torchpaml diagnose``: the diagnosis of a physics model on measured records, from the command line.
 
-``torchpaml diagnose --data TRAIN.csv --validation VAL.csv --physics oscillator [--fix omega0=2.0] --out DIR``
-fits the library physics (every parameter learnable unless fixed), ranks the library effects as
+``torchpaml diagnose --data TRAIN.csv [MORE.csv ...] --validation VAL.csv [...] --physics oscillator
+[--fix omega0=2.0] --out DIR`` fits the library physics (every parameter learnable unless fixed), ranks the library effects as
 the missing one, climbs the model ladder, fits the Chebyshev residual on top and writes the report
 (diagnosis.json, report.html, figures/, tensorboard/). ``torchpaml diagnose --config FILE.yaml`` takes
 the same keys from YAML, where ``physics`` and ``candidates`` may also be user classes
@@ -27,12 +27,14 @@ from torchpaml._physics.effects import EFFECTS, AbstractEffect
 from torchpaml._physics.registry import PHYSICS, parse_assignments
 
 __all__ = ["check_options", "config_mistake", "diagnose_command", "diagnose_parser", "diagnose_to_folder",
-           "normalise_arguments", "resolve_models", "run_diagnose"]
+           "normalise_arguments", "read_records", "resolve_models", "run_diagnose"]
 
 #: Repeatable flags, spelled ``--fix NAME=VALUE`` on the command line (jsonargparse appends with ``+``).
 REPEATED = {"--fix": "--fix+", "--effect": "--effects+", "--term": "--terms+"}
 #: Switches that may stand alone: ``--discover`` means ``--discover true``.
 SWITCHES = ("--discover", "--verbose", "--quiet")
+#: Options that take one file or several: ``--data a.csv b.csv`` is ``--data '["a.csv", "b.csv"]'``.
+RECORD_LISTS = ("--data", "--validation")
 
 
 def _physics(physics: str | AbstractPhysics, fix: list[str] | None) -> AbstractPhysics:
@@ -88,8 +90,8 @@ def check_options(shortlist: int, min_share: float, refit_budget: float = REFIT_
 
 
 def diagnose_command(
-    data: str,
-    validation: str,
+    data: str | list[str],
+    validation: str | list[str],
     out: str,
     physics: str | AbstractPhysics = "oscillator",
     fix: list[str] | None = None,
@@ -111,8 +113,10 @@ def diagnose_command(
     """Diagnose ``physics`` on the records and write the report into ``out``; returns the ``diagnosis.json`` content.
 
     Args:
-        data: training record, CSV with header ``t,u,y``.
-        validation: validation record, CSV with header ``t,u,y`` (a different input).
+        data: training record(s): one CSV or several (``--data a.csv b.csv``, ``data: [a.csv, b.csv]``), of any
+            lengths, each with its own initial state; header ``t,u,y``, ``t,u1,…,y1,…`` or named channels
+            (:meth:`~torchpaml.Record.from_csv`).
+        validation: validation record(s), likewise (a different input).
         out: output folder (diagnosis.json, figures/, report.html, tensorboard/).
         physics: a library physics name (oscillator, pendulum: every parameter learnable), or in a
             config file a physics object (``class_path``/``init_args``; its own ``learn``).
@@ -159,27 +163,53 @@ def diagnose_command(
     return json.loads(path.read_text())
 
 
-def diagnose_to_folder(physics: AbstractPhysics, candidates: list, data: str | Path, validation: str | Path,
-                       out: str | Path, *,
-                       hold: str | None = None, **options):
-    """Diagnose ``physics`` on the CSV records ``data`` and ``validation`` and write the report into ``out``.
+def read_records(paths: str | Path | list, hold: str | None = None) -> list:
+    """The CSV record(s) at ``paths`` (one path or a list), each named by its file's stem."""
+    from torchpaml._data import Record
+
+    paths = [paths] if isinstance(paths, str | Path) else list(paths)
+    if not paths:
+        raise ConfigurationError("no record given: name one CSV file or more (--data a.csv b.csv)")
+    return [Record.from_csv(path, Path(path).stem, hold=hold) for path in paths]
+
+
+def diagnose_to_folder(physics: AbstractPhysics, candidates: list, data: str | Path | list,
+                       validation: str | Path | list, out: str | Path, *, hold: str | None = None, **options):
+    """Diagnose ``physics`` on the CSV records ``data`` and ``validation`` (a path or a list of them) and write the
+    report into ``out``.
 
     The one pipeline of a unit's records, from files: ``torchpaml diagnose`` and each task of
     ``torchpaml fleet`` run it. ``hold`` is how the input moved between samples (default: the files' metadata, else
     ``"foh"``); ``options`` go to :func:`~torchpaml.diagnose`.
     """
-    from torchpaml._data import Record
     from torchpaml._diagnostics.diagnosis import diagnose
     from torchpaml._render.report import write_report
 
-    train, held_out = Record.from_csv(data, hold=hold), Record.from_csv(validation, hold=hold)
+    train, held_out = read_records(data, hold), read_records(validation, hold)
     diagnosis = diagnose(physics, candidates, train, held_out, **options)
     write_report(diagnosis, out)
     return diagnosis
 
 
+def _record_lists(argv: list[str]) -> list[str]:
+    """``--data a.csv b.csv`` (several values after an option of :data:`RECORD_LISTS`) as one JSON list."""
+    out, i = [], 0
+    while i < len(argv):
+        if argv[i] in RECORD_LISTS:
+            end = next((j for j in range(i + 1, len(argv)) if argv[j].startswith("--")), len(argv))
+            if end - i > 2:
+                out.append(f"{argv[i]}={json.dumps(argv[i + 1:end])}")
+                i = end
+                continue
+        out.append(argv[i])
+        i += 1
+    return out
+
+
 def normalise_arguments(argv: list[str], switches: tuple[str, ...] = SWITCHES) -> list[str]:
-    """``--fix NAME=VALUE`` and ``--effect NAME`` repeated, and ``switches`` alone, as jsonargparse reads them."""
+    """``--fix NAME=VALUE`` and ``--effect NAME`` repeated, ``--data a.csv b.csv``, and ``switches`` alone, as
+    jsonargparse reads them."""
+    argv = _record_lists(argv)
     argv = [f"{a}=true" if a in switches and (i + 1 == len(argv) or argv[i + 1].startswith("--")) else a
             for i, a in enumerate(argv)]
     argv = [REPEATED.get(a, a) for a in argv]

@@ -1,6 +1,8 @@
 """One unit of ``torchpaml fleet``: the single-unit diagnosis into a staging folder, put in place in one rename.
 
-A unit is a folder with ``train.csv`` and ``validation.csv``. Its task runs :func:`diagnose_command`,
+A unit is a folder with ``train.csv`` and ``validation.csv``, or several of each: every ``train*.csv`` (``train.csv``,
+``train_2.csv``, ...) is a training record and every ``validation*.csv`` a validation record (:func:`unit_records`),
+each with its own length and initial state. Its task runs :func:`diagnose_command`,
 the same as ``torchpaml diagnose``, with the fleet's options, into ``OUT/.<unit>.partial``; writes
 ``unit.json`` there (:func:`summary`); and renames the folder to ``OUT/<unit>``. So ``OUT/<unit>``
 holds either a whole result or nothing, and ``unit.json`` marks a unit that was run. A unit whose
@@ -18,10 +20,24 @@ import time
 import warnings
 from pathlib import Path
 
-__all__ = ["RECORDS", "UNIT_FILE", "diagnose_unit", "finished", "summary"]
+__all__ = ["RECORDS", "UNIT_FILE", "diagnose_unit", "finished", "summary", "unit_records"]
 
 UNIT_FILE = "unit.json"
+#: A unit's first training and validation record; more are ``train*.csv`` and ``validation*.csv`` beside them.
 RECORDS = ("train.csv", "validation.csv")
+
+
+def unit_records(folder: str | Path) -> dict[str, list[str]]:
+    """``{"data": [...], "validation": [...]}``: the unit's ``train*.csv`` and ``validation*.csv`` files, sorted by
+    name (``train.csv`` first); a missing ``train.csv`` or ``validation.csv`` stays named, so that its error says
+    which file is missing."""
+    folder = Path(folder)
+    found = {}
+    for key, first in zip(("data", "validation"), RECORDS, strict=True):
+        stem = first.removesuffix(".csv")
+        more = sorted(str(p) for p in folder.glob(f"{stem}*.csv") if p.name != first)
+        found[key] = [str(folder / first), *more]
+    return found
 
 
 def summary(unit: str, content: dict | None, seconds: float, error: str | None = None) -> dict:
@@ -63,9 +79,7 @@ def diagnose_unit(folder: str, out: str, options: dict) -> dict:
     start = time.perf_counter()
     try:
         parser = diagnose_parser()
-        config = parser.instantiate(parser.parse_object({**options, "data": str(Path(folder) / RECORDS[0]),
-                                                         "validation": str(Path(folder) / RECORDS[1]),
-                                                         "out": str(staging)}))
+        config = parser.instantiate(parser.parse_object({**options, **unit_records(folder), "out": str(staging)}))
         del config["config"]
         with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
             warnings.simplefilter("ignore")
