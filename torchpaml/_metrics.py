@@ -12,7 +12,7 @@ from collections.abc import Sequence
 
 import torch
 
-__all__ = ["channel_mismatch", "channel_scales", "fit_percent", "mismatch", "rmse", "sample_scales"]
+__all__ = ["channel_mismatch", "channel_scales", "channel_weights", "fit_percent", "mismatch", "rmse", "sample_scales"]
 
 
 def channel_mismatch(y: torch.Tensor, y_model: torch.Tensor) -> torch.Tensor:
@@ -39,6 +39,16 @@ def channel_scales(outputs: Sequence[torch.Tensor]) -> torch.Tensor:
     if width == 1:
         return torch.sqrt(sum(torch.sum(y.detach() ** 2) for y in outputs)).reshape(1)
     return torch.sqrt(width * sum(y.detach().reshape(-1, width).square().sum(dim=0) for y in outputs))
+
+
+def channel_weights(outputs: Sequence[torch.Tensor]) -> torch.Tensor:
+    """Weights (C,) that put the output channels of the records' ``outputs`` (each (..., C)) on one scale in a loss or
+    a regression over all channels: $1/\\mathrm{RMS}(y_c)$, and exactly 1 for one channel (its numbers unchanged)."""
+    width = outputs[0].shape[-1]
+    if width == 1:
+        return torch.ones(1, dtype=torch.float64)
+    squares = sum(y.detach().reshape(-1, width).square().sum(dim=0) for y in outputs)
+    return (sum(y.numel() // width for y in outputs) / squares).sqrt()
 
 
 def sample_scales(outputs: Sequence[torch.Tensor]) -> torch.Tensor:

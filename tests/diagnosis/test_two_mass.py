@@ -17,7 +17,7 @@ import pytest
 import torch
 
 from two_mass import FRICTION, TRUTH, TwoMass
-from torchpaml import (ConstantForce, CoulombFriction, CubicStiffness, Simulated, channel_mismatch, diagnose,
+from torchpaml import (ConstantForce, CoulombFriction, Discoverer, CubicStiffness, Simulated, channel_mismatch, diagnose,
                        diagnosis_to_dict, hybrid_residual, write_report)
 
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
@@ -70,6 +70,15 @@ def test_the_report_and_the_json_hold_each_channel(diagnosis, tmp_path):
     assert [c["name"] for c in channels] == ["y1", "y2"] and content["where_it_fails"]["shows_most"] == "y2"
     assert content == json.loads(json.dumps(diagnosis_to_dict(diagnosis)))
     assert "y2" in (tmp_path / "report.html").read_text()
+
+
+def test_the_discovery_reads_both_outputs():
+    """Without candidates, the discovery on both outputs beats the physics (it does not find the friction's form:
+    the how-to says so, and the ranking above finds it)."""
+    found = diagnose(TwoMass(), [], record("pseudorandom", 0), record("multisine", 1),
+                     discovery=Discoverer()).discovery
+    assert found.discovered is not None and found.recommended
+    assert "v2" in found.expression  # the second mass's velocity carries what is missing
 
 
 def test_two_training_records_of_unequal_length_from_the_command_line(tmp_path):

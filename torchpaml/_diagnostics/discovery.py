@@ -137,9 +137,9 @@ def discover_missing_force(
     library, regression = library or TermLibrary(), regression or SparseRegression()
     baseline = ranking.baseline
     physics = baseline.model
-    if physics.output_dim != 1 or physics.input_dim != 1:
-        raise ConfigurationError(f"discovery handles one input and one output; {physics.display_name} has "
-                                 f"{physics.input_dim} and {physics.output_dim}")
+    if physics.input_dim != 1:
+        raise ConfigurationError(f"discovery handles physics with one input (its terms read u); "
+                                 f"{physics.display_name} has {physics.input_dim}")
     variables, equations = variables_of(physics)
     terms = library.build(physics)
     log.info("discovery: training a neural rate on %s", physics.display_name)

@@ -1,6 +1,7 @@
 r"""The discovery's regression data (:mod:`~torchpaml._diagnostics.discovery`, step 2): each library term's response
 through the physics along the neural model's trajectories, the learned rate's, the measured residual, and the
-physics' own sensitivities, records concatenated."""
+physics' own sensitivities, records concatenated. With several output channels every channel's samples are rows,
+each channel weighted by $1/\mathrm{RMS}(y_c)$ (:func:`~torchpaml._metrics.channel_weights`)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from torchpaml._data.simulation import record_jacobian, record_response, record_
 from torchpaml._diagnostics.probes import assigned
 from torchpaml._diagnostics.results import ModelScore
 from torchpaml._fit.neural_force import NeuralForceFit
+from torchpaml._metrics import channel_weights
 from torchpaml._physics.terms import compile_term, state_columns, width_symbol
 
 __all__ = ["Columns", "columns", "width_range"]
@@ -61,7 +63,8 @@ def columns(neural: NeuralForceFit, baseline: ModelScore, terms: list[str], equa
     names = physics.learnable_names()
     parts: dict[str, list[torch.Tensor]] = {"responses": [], "learned": [], "measured": [], "jacobian": []}
     samples: dict[str, torch.Tensor] = {}
-    n = physics.state_dim
+    n, outputs = physics.state_dim, physics.output_dim
+    weights = channel_weights([r.y for r in train])
     for record, x0, states in zip(train, starts, trajectories, strict=True):
         values = {name: states[:, i] for name, i in index.items()}
         values["u"] = record.u[:, 0]
@@ -74,18 +77,18 @@ def columns(neural: NeuralForceFit, baseline: ModelScore, terms: list[str], equa
                 rates.append(rate)
         with torch.no_grad():
             learned = neural.model.learned(states, record.u)
-        responses = record_response(physics, record, x0, torch.stack([*rates, learned]), solver)
-        parts["responses"].append(responses[:-1, :, 0].T)
-        parts["learned"].append(responses[-1, :, 0])
+        responses = record_response(physics, record, x0, torch.stack([*rates, learned]), solver) * weights
+        parts["responses"].append(responses[:-1].reshape(len(rates), -1).T)  # rows: samples, then channels
+        parts["learned"].append(responses[-1].reshape(-1))
         y, J = record_jacobian(physics, names[:1], record, x0, initial_state=estimate, solver=solver) if estimate \
             else (simulate_record(physics, record, x0, solver=solver), None)
         own = _own_sensitivities(physics, names, states, record.u)  # (N, n + n_output, p)
         own_responses = record_response(physics, record, x0, own[:, :n].movedim(-1, 0), solver)
-        columns = own_responses[:, :, 0].T + own[:, n, :]
-        if estimate:
-            columns = torch.cat([columns, J[0, :, 0, len(names[:1]):]], dim=1)  # the initial states' free responses
-        parts["measured"].append((record.y - y[0])[:, 0])
-        parts["jacobian"].append(columns)
+        columns = own_responses.movedim(0, -1) + own[:, n:n + outputs, :]  # (N, n_output, p)
+        if estimate:  # the initial states' free responses
+            columns = torch.cat([columns, J[0, :, :, len(names[:1]):]], dim=-1)
+        parts["measured"].append(((record.y - y[0]) * weights).reshape(-1))
+        parts["jacobian"].append((columns * weights[:, None]).reshape(len(record.t) * outputs, -1))
         if not samples:
             first = next(iter(equations.values()))
             samples = {**{v: values[v] for v in variables}, "learned": learned[:, first]}

@@ -24,6 +24,7 @@ import torch
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._data import Record
 from torchpaml._fit.output_error import minimize_output_error
+from torchpaml._metrics import channel_weights
 from torchpaml._physics.terms import variables_of
 from torchpaml._residual.mlp import MLPRate, RateAugmented
 from torchpaml._data.simulation import record_output, record_states
@@ -83,10 +84,12 @@ def fit_neural_force(
     model = RateAugmented(frozen, rate, list(equations.values()))
     warm = [WarmStart() for _ in records]
 
+    weights = channel_weights([r.y for r in records])  # several outputs weigh the same; one: unchanged
+
     def predict() -> torch.Tensor:
-        return torch.cat([record_output(model, r, x0, solver=solver, warm=w).flatten()
+        return torch.cat([(record_output(model, r, x0, solver=solver, warm=w) * weights).flatten()
                           for r, x0, w in zip(records, starts, warm, strict=True)])
 
-    target = torch.cat([r.y.flatten() for r in records])
+    target = torch.cat([(r.y * weights).flatten() for r in records])
     loss, iterations = minimize_output_error(predict, target, list(rate.parameters()), max_iter=max_iter)
     return NeuralForceFit(model, loss**0.5, iterations, solver)
