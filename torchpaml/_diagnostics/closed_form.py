@@ -35,7 +35,7 @@ from torchpaml._fit import PhysicsEstimate
 from torchpaml._budget import Budget
 from torchpaml._fit.uncertainty import IdentifiabilityWarning
 from torchpaml._physics.discovered import DiscoveredForce
-from torchpaml._physics.terms import compile_term, state_columns, width_symbol
+from torchpaml._physics.terms import compile_term, input_values, state_columns, width_symbol
 from torchpaml._data.simulation import record_states
 from torchpaml._simulate.solvers import Solver
 
@@ -158,7 +158,7 @@ def _sizes(score: ModelScore, train: Sequence[Record]) -> list[float]:
     index = state_columns(model)
     states = record_states(model, record, score.train_states[0], score.solver)
     with torch.no_grad():
-        values = {**{name: states[:, i] for name, i in index.items()}, "u": record.u[:, 0],
+        values = {**{name: states[:, i] for name, i in index.items()}, **input_values(model, record.u),
                   **{w: getattr(effect, w) for w in effect.width_names}}
         return [abs(float(effect.gain * getattr(effect, name))) * float(compile_term(term, None).evaluate(values)
                                                                          .square().mean().sqrt())

@@ -58,7 +58,6 @@ from torchpaml._diagnostics.closed_form_search import ClosedFormSearch, Regresse
 from torchpaml._diagnostics.regressors import columns
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
 from torchpaml._diagnostics.scoring import as_records
-from torchpaml._errors import ConfigurationError
 from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
 from torchpaml._metrics import mismatch
@@ -137,9 +136,6 @@ def discover_missing_force(
     library, regression = library or TermLibrary(), regression or SparseRegression()
     baseline = ranking.baseline
     physics = baseline.model
-    if physics.input_dim != 1:
-        raise ConfigurationError(f"discovery handles physics with one input (its terms read u); "
-                                 f"{physics.display_name} has {physics.input_dim}")
     variables, equations = variables_of(physics)
     terms = library.build(physics)
     log.info("discovery: training a neural rate on %s", physics.display_name)

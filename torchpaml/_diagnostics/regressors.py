@@ -17,7 +17,7 @@ from torchpaml._diagnostics.probes import assigned
 from torchpaml._diagnostics.results import ModelScore
 from torchpaml._fit.neural_force import NeuralForceFit
 from torchpaml._metrics import channel_weights
-from torchpaml._physics.terms import compile_term, state_columns, width_symbol
+from torchpaml._physics.terms import compile_term, input_values, state_columns, width_symbol
 
 __all__ = ["Columns", "columns", "width_range"]
 
@@ -67,7 +67,7 @@ def columns(neural: NeuralForceFit, baseline: ModelScore, terms: list[str], equa
     weights = channel_weights([r.y for r in train])
     for record, x0, states in zip(train, starts, trajectories, strict=True):
         values = {name: states[:, i] for name, i in index.items()}
-        values["u"] = record.u[:, 0]
+        values.update(input_values(physics, record.u))
         values.update({w: torch.tensor(2 * low, dtype=states.dtype) for w, (low, _) in widths.items()})
         rates = []
         for equation, state in equations.items():

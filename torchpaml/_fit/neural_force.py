@@ -76,8 +76,8 @@ def fit_neural_force(
     starts = [frozen.initial_state(1) if x0 is None else x0.reshape(1, -1)
               for x0 in (initial_states or [None] * len(records))]
     states = torch.cat([record_states(frozen, r, x0, solver) for r, x0 in zip(records, starts, strict=True)])
-    inputs = torch.cat([r.u[:, 0] for r in records])
-    scales = [float(s.std()) or 1.0 for s in (*states.T, inputs)]
+    inputs = torch.cat([r.u for r in records])
+    scales = [float(s.std()) or 1.0 for s in (*states.T, *inputs.T)]
     with torch.random.fork_rng():
         torch.manual_seed(seed)
         rate = MLPRate(scales, len(equations), hidden, depth)

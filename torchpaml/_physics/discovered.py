@@ -29,7 +29,7 @@ from torchpaml._physics.base import AbstractPhysics
 from torchpaml._errors import ConfigurationError
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effects import AbstractEffect
-from torchpaml._physics.terms import compile_term, state_columns, variables_of
+from torchpaml._physics.terms import compile_term, input_values, state_columns, variables_of
 
 __all__ = ["DiscoveredForce"]
 
@@ -99,7 +99,7 @@ class DiscoveredForce(AbstractEffect):
 
     def rate(self, physics: AbstractPhysics, x, u):
         values = {name: x[..., i] for name, i in state_columns(physics).items()}
-        values["u"] = u[..., 0]
+        values.update(input_values(physics, u))
         equations = variables_of(physics)[1]
         values.update({w: getattr(self, w) for w in self.width_names})
         totals: dict[str, torch.Tensor] = {}

@@ -40,24 +40,37 @@ _FUNCTIONS: dict[type, Callable[[torch.Tensor], torch.Tensor]] = {
 }
 
 
+def input_variables(physics: AbstractPhysics) -> tuple[str, ...]:
+    """The names a term reads the inputs by: ``u`` for one input, ``u1, u2, …`` for several."""
+    count = physics.input_dim
+    return ("u",) if count == 1 else tuple(f"u{i + 1}" for i in range(count))
+
+
+def input_values(physics: AbstractPhysics, u: torch.Tensor) -> dict[str, torch.Tensor]:
+    """Each input variable's values (:func:`input_variables`) from ``u`` (..., n_input)."""
+    return {name: u[..., i] for i, name in enumerate(input_variables(physics))}
+
+
 def variables_of(physics: AbstractPhysics) -> tuple[tuple[str, ...], dict[str, int]]:
     """``(variables, equations)`` of a physics (module docstring): the names a term is written in, and each
     equation's name with the index of the state whose rate it adds to.
 
-    Second-order physics: ``(("x", "v", "u"), {"acceleration": 1})``; any other: its ``state_names`` and
-    ``"u"``, and one equation per state.
+    Second-order physics: ``(("x", "v", "u"), {"acceleration": 1})``; any other: its ``state_names`` and its inputs
+    (``u``, or ``u1, u2, …``: :func:`input_variables`), and one equation per state.
     """
     from torchpaml._physics.base import SecondOrderPhysics
 
     base = physics.without_effects()
+    inputs = input_variables(base)
     if isinstance(base, SecondOrderPhysics):
-        return ("x", "v", "u"), {"acceleration": 1}
+        return ("x", "v", *inputs), {"acceleration": 1}
     names = tuple(base.state_names)
-    bad = [n for n in names if not n.isidentifier() or n == "u" or n.startswith("eps")]
+    bad = [n for n in names if not n.isidentifier() or n == "u" or n in inputs or n.startswith("eps")]
     if bad:
         raise ConfigurationError(f"{base.display_name}'s state names {bad} cannot name variables of a term; give state_names "
-                         "that are Python identifiers other than 'u' and not starting with 'eps'")
-    return (*names, "u"), {name: i for i, name in enumerate(names)}
+                         f"that are Python identifiers other than the inputs {list(inputs)} and 'u', not starting "
+                         f"with 'eps'")
+    return (*names, *inputs), {name: i for i, name in enumerate(names)}
 
 
 def state_columns(physics: AbstractPhysics) -> dict[str, int]:
@@ -178,7 +191,8 @@ class TermLibrary:
     def build(self, physics: AbstractPhysics) -> list[str]:
         """The library's terms for ``physics`` (canonical sympy text, no duplicates, in a fixed order)."""
         variables, equations = variables_of(physics)
-        states = ("v",) if "acceleration" in equations else tuple(v for v in variables if v != "u")
+        inputs = input_variables(physics.without_effects())
+        states = ("v",) if "acceleration" in equations else tuple(v for v in variables if v not in inputs)
         roots = ("x", "v") if "acceleration" in equations else states
         terms = _monomials(variables, self.degree)
         if self.signs:

@@ -104,7 +104,7 @@ class ForceAugmented(SecondOrderPhysics):
 
 
 class MLPRate(nn.Module):
-    r"""A learned rate $\mathrm{MLP}(z/s)$ of the variables $z = (x, u)$, (batch, n_state + 1) -> (batch, outputs).
+    r"""A learned rate $\mathrm{MLP}(z/s)$ of the variables $z = (x, u)$, (batch, n_state + n_input) -> (batch, outputs).
 
     ``scales`` $s$ (one per variable) make the inputs of order one. Starts at zero.
     """
@@ -120,7 +120,7 @@ class MLPRate(nn.Module):
 
 class RateAugmented(AbstractPhysics):
     r"""``physics`` with a learned rate on the state equations ``equations`` (indices):
-    $\dot x = f(t, x, u) + E\,\mathrm{MLP}(x, u_1)$, $E$ the columns of those states. Output map: the physics'.
+    $\dot x = f(t, x, u) + E\,\mathrm{MLP}(x, u)$, $E$ the columns of those states. Output map: the physics'.
     """
 
     def __init__(self, physics: AbstractPhysics, rate: MLPRate, equations: list[int]):
@@ -130,7 +130,7 @@ class RateAugmented(AbstractPhysics):
 
     def derivative(self, t, x, u):
         dx = self.physics.derivative(t, x, u)
-        extra = self.rate(torch.cat([x, u[..., :1]], dim=-1))
+        extra = self.rate(torch.cat([x, u], dim=-1))
         columns = [dx[..., i] for i in range(dx.shape[-1])]
         for j, i in enumerate(self.equations):
             columns[i] = columns[i] + extra[..., j]
@@ -138,7 +138,7 @@ class RateAugmented(AbstractPhysics):
 
     def learned(self, x, u):
         """The learned rate on every state equation, x (..., n_state), u (..., n_input) -> (..., n_state)."""
-        extra = self.rate(torch.cat([x, u[..., :1]], dim=-1))
+        extra = self.rate(torch.cat([x, u], dim=-1))
         full = torch.zeros_like(x)
         full[..., self.equations] = extra
         return full
