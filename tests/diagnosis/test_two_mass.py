@@ -101,3 +101,12 @@ def test_two_training_records_of_unequal_length_from_the_command_line(tmp_path):
     assert [step["model"] for step in content["ladder"]] == ["TwoMass", "TwoMass + coulomb_friction_v2"]
     assert content["where_it_fails"]["shows_most"] == "y2"
     assert content["ladder"][-1]["nrmse_validation"] < 1.1 * NOISE
+
+
+class NamedTwoMass(TwoMass):
+    output_names = ("x1", "x2")
+
+
+def test_the_outputs_go_by_the_physics_names_where_the_records_give_none():
+    found = diagnose(NamedTwoMass(), [CoulombFriction()], record("pseudorandom", 0, 20.0), record("multisine", 1, 20.0))
+    assert [c.name for c in found.channels] == ["x1", "x2"] and found.shows_most.name == "x2"

@@ -106,3 +106,18 @@ def test_certificates_hold_against_both_outputs_and_every_sensitivity_of_a_two_m
         draws=3, samples_per_period=200).worst
     # the single-channel tolerance (tests/unit/test_certificates.py), past the chain's slower transient (decay ~0.1 1/s)
     assert zeroth < 1e-3 and first < 1e-3
+
+
+class _Named(Oscillator):
+    output_names = ("position",)
+
+
+def test_a_record_whose_channel_names_differ_from_the_physics_is_named_in_one_line():
+    t = time_grid(10.0, 0.1)
+    u = pseudorandom(t, 1.0, 0.5, seed=0)
+    with torch.no_grad():
+        y = simulate(_Named(), t, u)[0]
+    named = Record(t, u[0], y, "bench", {"outputs": ["angle"]})
+    with pytest.raises(DataError, match=r"names its outputs \['angle'\], but _Named names them \['position'\]"):
+        fit_physics(_Named(), named)
+    assert fit_physics(_Named(), Record(t, u[0], y, "bench", {"outputs": ["position"]})).mismatch < 1e-6

@@ -46,14 +46,16 @@ def _joined(step: ModelScore, validation: list[Record]) -> tuple[torch.Tensor, t
 
 
 def channel_scores(physics: ModelScore, final: ModelScore, validation: list[Record]) -> list[ChannelScore]:
-    """Each output channel's :class:`ChannelScore` (module docstring), in the records' order."""
+    """Each output channel's :class:`ChannelScore` (module docstring), in the records' order, named as the first
+    validation record names it, else as the physics does (``output_names``), else ``y1, y2, …``."""
     y, y_physics = _joined(physics, validation)
     _, y_final = _joined(final, validation)
     before, after = channel_mismatch(y, y_physics), channel_mismatch(y, y_final)
     rmse_before, rmse_after = ((y - out).square().mean(dim=0).sqrt() for out in (y_physics, y_final))
     record, model = validation[0], physics.validation_outputs[0]
+    named = "outputs" in record.metadata or not physics.model.output_names
     scores = []
-    for c, name in enumerate(record.output_names):
+    for c, name in enumerate(record.output_names if named else physics.model.output_names):
         error = (record.y - model)[:, c]
         scores.append(ChannelScore(name, float(before[c]), float(after[c]), float(rmse_before[c]),
                                    float(rmse_after[c]), residual_analysis(record.u[:, 0], error),

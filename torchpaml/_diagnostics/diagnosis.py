@@ -338,7 +338,7 @@ def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect
     most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
                                                  for c in candidates), default=0)
     for record in train + validation:
-        check_channels(physics, record.name, record.u.shape[1], record.y.shape[1])
+        check_channels(physics, record)
     check_physics(physics, train[0].t, train[0].u)
     if discovery is not None:
         discovery.library.build(physics)  # a user term that does not parse is named before any fit

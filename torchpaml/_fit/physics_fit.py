@@ -173,7 +173,7 @@ def _checked_unknowns(physics: AbstractPhysics, records: list[Record], initial_s
         raise ConfigurationError(f"start_states needs initial_state=Estimate() and one state per record "
                                  f"({len(records)}), got {len(start_states)} with {initial_state!r}")
     for record in records:
-        check_channels(physics, record.name, record.u.shape[1], record.y.shape[1])
+        check_channels(physics, record)
     names = physics.learnable_names()
     if not names and not initial_state.estimated:
         raise ConfigurationError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")

@@ -80,6 +80,11 @@ class AbstractPhysics(nn.Module):
     state_names: tuple[str, ...] = ()
     input_dim: int = 1
     output_dim: int = 1
+    #: The channels' names, where the physics names them (``("force",)``, ``("x1", "x2")``): a record that declares
+    #: other names (its metadata's ``"inputs"`` / ``"outputs"``) is refused, and the diagnosis reports each output
+    #: by them where the records do not name it. Default: unnamed.
+    input_names: tuple[str, ...] = ()
+    output_names: tuple[str, ...] = ()
     #: The mechanical degrees of freedom, as (position, velocity) pairs of state names, where a force effect may
     #: act (``CoulombFriction().on("v2")``): ``(("x1", "v1"), ("x2", "v2"))`` for a two-mass chain. Default none:
     #: only effects that name their states (rates) and maps apply.

@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import torch
 
-from torchpaml._errors import DataError, PhysicsError
+from torchpaml._errors import ConfigurationError, DataError, PhysicsError
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics
 
 __all__ = ["check_channels", "check_physics"]
@@ -43,14 +43,25 @@ def _evaluate(name: str, method: str, call: Callable[[], torch.Tensor], expected
                            "the formula (a division by a state that starts at 0, a log or sqrt of a negative value)")
 
 
-def check_channels(physics: AbstractPhysics, record: str, inputs: int, outputs: int) -> None:
-    """:class:`~torchpaml.DataError` in one line where the record ``record``'s ``inputs`` and ``outputs`` channels are
-    not the physics' ``input_dim`` and ``output_dim``."""
-    for what, given, declared in (("input", inputs, physics.input_dim), ("output", outputs, physics.output_dim)):
+def check_channels(physics: AbstractPhysics, record) -> None:
+    """:class:`~torchpaml.DataError` in one line where a :class:`~torchpaml.Record`'s input and output channels are
+    not the physics' ``input_dim`` and ``output_dim``, or where both name them and the names differ; a
+    :class:`~torchpaml.ConfigurationError` where the physics names a number of channels other than its own."""
+    counts = {"input": record.u.shape[1], "output": record.y.shape[1]}
+    for what, given in counts.items():
+        declared, names = getattr(physics, f"{what}_dim"), tuple(getattr(physics, f"{what}_names"))
         if given != declared:
-            raise DataError(f"record {record!r} has {given} {what} channel(s), but {physics.display_name} has "
+            raise DataError(f"record {record.name!r} has {given} {what} channel(s), but {physics.display_name} has "
                             f"{declared} ({what}_dim); give records with {declared} {what} column(s) (header "
                             f"t,u1,…,y1,…), or a physics whose {what}_dim is {given}")
+        if names and len(names) != declared:
+            raise ConfigurationError(f"{physics.display_name} names {len(names)} {what}(s) {list(names)} but has "
+                                     f"{declared} ({what}_dim); name one per channel")
+        named = record.metadata.get(f"{what}s")
+        if names and named is not None and tuple(named) != names:
+            raise DataError(f"record {record.name!r} names its {what}s {list(named)}, but {physics.display_name} "
+                            f"names them {list(names)}; rename the record's columns (its metadata's \"{what}s\") "
+                            f"or the physics' {what}_names")
 
 
 def check_physics(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor) -> None:

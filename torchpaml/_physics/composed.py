@@ -62,6 +62,7 @@ class ComposedModel(AbstractPhysics):
         self.state_names = (*base.state_names,
                             *(f"{e.name}.{s.name}" for e in effects for s in e.own_states))
         self.input_dim, self.output_dim = base.input_dim, base.output_dim
+        self.input_names, self.output_names = base.input_names, base.output_names
 
     def _own(self, x: torch.Tensor) -> tuple[torch.Tensor, dict[str, tuple[torch.Tensor, ...]]]:
         """The base's states (..., n_base) and, per effect, the extra hook argument: ``(z,)`` (..., k) for an
