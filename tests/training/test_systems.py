@@ -74,3 +74,20 @@ def test_joint_fit_with_the_chebyshev_residual_returns_to_the_physics_estimate(p
     residual = ChebyshevHammerstein(4.0)
     system = train(JointFit(Oscillator(zeta=factor * zeta_hat), residual, bounds={"zeta": (1e-3, 5.0)}), data, 4)
     assert system.physics.zeta.item() == pytest.approx(zeta_hat, rel=0.01)  # the issue's 1 %
+
+
+def test_both_stages_train_a_physics_with_two_outputs():
+    """A user's two-mass chain (tests/two_mass.py), both positions measured: stage 1 recovers its parameters, stage 2
+    fits a residual with an output per channel."""
+    from two_mass import TRUTH, TwoMass
+
+    sources = {split: Simulated(TwoMass(**TRUTH), signal, 1.0, [seed], 20.0, 0.02, noise=0.01)
+               for split, signal, seed in (("train", "pseudorandom", 0), ("validation", "multisine", 1),
+                                           ("identification", "pseudorandom", 2))}
+    data = RecordDataModule(**sources)
+    physics = train(PhysicsFit(TwoMass()), RecordDataModule(train=sources["identification"]), epochs=2).physics
+    assert physics.physical_parameters() == pytest.approx(TRUTH, rel=0.01)
+    system = train(ResidualFit(TwoMass(), ChebyshevHammerstein(1.05, outputs=2)), data, epochs=2)
+    t, u, _ = data.records("train")[0].batch()
+    with torch.no_grad():
+        assert system.residual(t, u).shape == (1, len(t), 2)
