@@ -3,8 +3,9 @@ r"""``physics + effect``: any physics with extra effects, as one physics model.
 $$ \dot x = f_{\text{base}}(t, x, \tilde u) + \sum_e R_e(x, u) + e_v \sum_e F_e(x, v, u), \qquad
    \tilde u = m_{\text{in}}(u), \qquad y = m_{\text{out}}(h_{\text{base}}(x, \tilde u)), $$
 
-with the rates $R_e$ on named state equations, the forces $F_e$ on the velocity equation $e_v$
-(second-order physics only: there $\ddot x = a_{\text{base}} + \sum_e F_e$), the input maps $m_{\text{in}}$ and output maps $m_{\text{out}}$ of the effects applied in the
+with the rates $R_e$ on named state equations, the forces $F_e$ on the velocity equation $e_v$ of their degree of
+freedom (:attr:`~torchpaml.AbstractPhysics.degrees_of_freedom`; on second-order physics
+$\ddot x = a_{\text{base}} + \sum_e F_e$), the input maps $m_{\text{in}}$ and output maps $m_{\text{out}}$ of the effects applied in the
 order they were added. An effect with its own states $z_e$ (:attr:`~torchpaml.AbstractEffect.own_states`:
 hysteresis, dynamic friction, a lagged input) appends them to the state vector, $\dot z_e = g_e(x, z_e, u)$,
 after the base's states, named ``effect.state``; its force, rate and maps then read $z_e$ too. A state of the

@@ -30,8 +30,8 @@ class EffectState:
 class AbstractEffect(nn.Module):
     """An effect added to physics with ``+`` (module docstring). Override any of the four hooks:
 
-    * ``force(physics, x, v, u)``: an extra acceleration (batch,) from x, v, u (batch,); second-order
-      (mechanical) physics only, where it enters the velocity equation;
+    * ``force(physics, x, v, u)``: an extra acceleration (batch,) from x, v, u (batch,) of a mechanical degree of
+      freedom, entering its velocity's equation (below);
     * ``rate(physics, x, u)``: an extra term of $\\dot x$, (batch, n_state) from x (batch, n_state) and
       u (batch, n_input), for any physics; :meth:`on_state` builds it for one named state equation;
     * ``input_map(u)`` and ``output_map(y)``: elementwise transforms of the signals, for any physics.

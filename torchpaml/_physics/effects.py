@@ -6,7 +6,8 @@ acts on the composed model (:mod:`~torchpaml._physics.composed`)
 $$ \dot x = f_{\text{base}}(t, x, \tilde u) + \sum_e R_e(x, u) + e_v \sum_e F_e(x, v, u), \qquad
    \tilde u = \text{the input maps of } u, \qquad y = \text{the output maps of } h_{\text{base}}(x, \tilde u), $$
 
-through a *force* $F_e$ on the velocity equation (second-order physics only), a *rate* $R_e$ on
+through a *force* $F_e$ on the velocity equation of a degree of freedom (a second-order physics' one, or the one
+``effect.on("v2")`` names), a *rate* $R_e$ on
 named state equations, or the input and output maps (any physics). The library's nine static ones (the three with memory are in
 :mod:`~torchpaml._physics.memory_effects`):
 
