@@ -47,8 +47,7 @@ def channel_weights(outputs: Sequence[torch.Tensor]) -> torch.Tensor:
     width = outputs[0].shape[-1]
     if width == 1:
         return torch.ones(1, dtype=torch.float64)
-    squares = sum(y.detach().reshape(-1, width).square().sum(dim=0) for y in outputs)
-    return (sum(y.numel() // width for y in outputs) / squares).sqrt()
+    return (width * sum(y.numel() // width for y in outputs)) ** 0.5 / channel_scales(outputs)
 
 
 def sample_scales(outputs: Sequence[torch.Tensor]) -> torch.Tensor:

@@ -51,7 +51,7 @@ from torchpaml._diagnostics.validity import AmplitudeBins
 from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._grid import uniform_step
 from torchpaml._data.simulation import simulate_record
-from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein
+from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein, joined_in_time, per_record
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters
 from torchpaml._fit.initial_state import InitialState, Rest
@@ -188,18 +188,6 @@ def _signals(records: list[Record]) -> tuple:
     return [r.elapsed for r in records], [r.u[None] for r in records], [r.y[None] for r in records]
 
 
-def _joined(parts) -> torch.Tensor:
-    """A batch as it is, or per-record tensors (1, time_i, ·) joined in time: the samples a mismatch counts."""
-    return parts if isinstance(parts, torch.Tensor) else torch.cat(list(parts), dim=1)
-
-
-def _apply(residual: ChebyshevHammerstein, t, u):
-    """The residual's output on one batch, or on each record (a sequence, as :func:`_signals` gives it)."""
-    if isinstance(t, torch.Tensor):
-        return residual(t, u)
-    return [residual(t_i, u_i) for t_i, u_i in zip(t, u, strict=True)]
-
-
 def _noise_like(record: Record, y_model: torch.Tensor) -> tuple[bool, float]:
     """Whether the training residual of every output channel is noise by effect size (its cross-correlation with the
     first input below :data:`NOISE_CORRELATION` at all but :data:`WHITE_SHARE` of the lags), and the largest share of
@@ -238,11 +226,11 @@ def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alp
     t, u, y = _signals(train)
     residual, y_physics = hybrid_residual(step, train, alpha)
     with torch.no_grad():
-        hybrid_train = mismatch(_joined(y), _joined(y_physics) + _joined(_apply(residual, t, u)))
+        hybrid_train = mismatch(joined_in_time(y), joined_in_time(y_physics) + per_record(residual, t, u))
         v_t, v_u, v_y = _signals(validation)
-        v_physics = _joined([o[None] for o in step.validation_outputs])
-        hybrid_validation = mismatch(_joined(v_y), v_physics + _joined(_apply(residual, v_t, v_u)))
-    noise, linear_share = _noise_like(train[0], _joined(y_physics)[0, :len(train[0].t)])
+        v_physics = joined_in_time([o[None] for o in step.validation_outputs])
+        hybrid_validation = mismatch(joined_in_time(v_y), v_physics + per_record(residual, v_t, v_u))
+    noise, linear_share = _noise_like(train[0], joined_in_time(y_physics)[0, :len(train[0].t)])
     adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
                                residual_white=noise, linear_share=linear_share)
     return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy)

@@ -63,16 +63,17 @@ def project(regressors: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tenso
     return (scaled[:, 0] / scale).reshape(n, width), (A @ scaled).reshape(target.shape)
 
 
-def _in_time(parts: torch.Tensor | Sequence[torch.Tensor]) -> torch.Tensor:
-    """A batch as it is, or records of unequal length (1, time_i, ...) joined in time, (1, Σ time_i, ...)."""
+def joined_in_time(parts: torch.Tensor | Sequence[torch.Tensor]) -> torch.Tensor:
+    """A batch as it is, or records of unequal length (1, time_i, ...) joined in time, (1, Σ time_i, ...): the
+    samples a least squares or a mismatch counts."""
     return parts if isinstance(parts, torch.Tensor) else torch.cat(list(parts), dim=1)
 
 
-def _per_record(method, t, u) -> torch.Tensor:
+def per_record(method, t, u) -> torch.Tensor:
     """``method(t, u)`` of one batch, or of each record (each filter from rest) joined in time."""
     if isinstance(t, torch.Tensor):
         return method(t, u)
-    return _in_time([method(t_i, u_i) for t_i, u_i in zip(t, u, strict=True)])
+    return joined_in_time([method(t_i, u_i) for t_i, u_i in zip(t, u, strict=True)])
 
 
 def fit_chebyshev_hammerstein(
@@ -93,12 +94,12 @@ def fit_chebyshev_hammerstein(
     numerators, projected on its own target divided by that target's norm, so that every output weighs the same in
     the pole search (the coefficients are then scaled back)."""
     poles = residual.pole_parameters()
-    target = _in_time(target)
+    target = joined_in_time(target)
     scales = torch.linalg.vector_norm(target.detach().reshape(-1, target.shape[-1]), dim=0).clamp(min=1e-300)
     scaled = target if residual.outputs == 1 else target / scales
 
     def projections() -> list[tuple[torch.Tensor, torch.Tensor]]:
-        regressors = _per_record(residual.regressors, t, u)
+        regressors = per_record(residual.regressors, t, u)
         return [project(regressors, scaled[..., o]) for o in range(residual.outputs)]
 
     def projected():
@@ -109,7 +110,7 @@ def fit_chebyshev_hammerstein(
         coefficients = [c for c, _ in projections()]
         residual.set_coefficients(coefficients[0] if residual.outputs == 1 else
                                   torch.stack(coefficients) * scales[:, None, None])
-        unexplained = mismatch(target, _per_record(residual, t, u))
+        unexplained = mismatch(target, per_record(residual, t, u))
     return ResidualEstimate(unexplained, iterations, "variable-projection")
 
 
