@@ -92,7 +92,10 @@ class ComposedModel(AbstractPhysics):
                     acceleration = acceleration + force
             dx = state_vector([vel, acceleration])
         else:
-            dx = self.base.derivative(t, x, mapped) + self._forces(x, u, own)
+            dx = self.base.derivative(t, x, mapped)
+            forces = self._forces(x, u, own)
+            if forces is not None:
+                dx = dx + forces
         for name, effect in self.effects.items():
             extra = effect.rate(self.base, x, u, *own[name])
             if extra is not None:
@@ -103,17 +106,18 @@ class ComposedModel(AbstractPhysics):
             return dx
         return state_vector([*dx.unbind(-1), *(column for rate in rates for column in rate.unbind(-1))])
 
-    def _forces(self, x: torch.Tensor, u: torch.Tensor, own: dict) -> torch.Tensor | float:
+    def _forces(self, x: torch.Tensor, u: torch.Tensor, own: dict) -> torch.Tensor | None:
         """The forces on the degrees of freedom of a base other than a :class:`SecondOrderPhysics`, (batch, n_base):
-        each on its velocity's equation (:meth:`~torchpaml.AbstractEffect.degree_of_freedom`)."""
-        total = 0.0
+        each on its velocity's equation (:meth:`~torchpaml.AbstractEffect.degree_of_freedom`); ``None`` without one."""
+        total = None
         for name, effect in self.effects.items():
             if not effect.is_force:
                 continue
             i, j = effect.degree_of_freedom(self.base)
             force = effect.force(self.base, x[..., i], x[..., j], u[..., 0], *own[name])
             velocity = self.base.state_names[j]
-            total = total + effect.on_state(self.base, x, {velocity: force})
+            term = effect.on_state(self.base, x, {velocity: force})
+            total = term if total is None else total + term
         return total
 
     def _seen(self, effect: AbstractEffect, x: torch.Tensor) -> torch.Tensor:
