@@ -179,7 +179,8 @@ def limits(results: Path) -> str | None:
         data = json.loads((results / path).read_text())
         goal, unit = data["goal"], data["protocol"]["unit"]
         kind = f"{goal['limit']['kind']}{' (goal met)' if goal['met'] else ''}"
-        lines.append(f"| {name} ({goal['split']}) | ≤ {_figure(goal['value'], unit)} | {_figure(goal['figure'], unit)} "
+        lines.append(f"| {name} ({goal['split']}) | ≤ {_figure(goal['value'], unit)} "
+                     f"| {_figure(goal['figure'], unit)} "
                      f"| {kind} | {goal['limit']['explanation']} |")
     return "\n".join(lines) if len(lines) > 2 else None
 

@@ -81,8 +81,8 @@ def test_start(model, solver, record: Record):
 
 
 def friction(parameters: dict[str, float]) -> dict[str, float]:
-    """The Coulomb friction in N against motion forward ($F_c - f_0$) and backward ($F_c + f_0$): the offset $f_0$ and the
-    symmetric $F_c$ together are Coulomb friction that differs with the direction of motion."""
+    """The Coulomb friction in N against motion forward ($F_c - f_0$) and backward ($F_c + f_0$): the offset $f_0$ and
+    the symmetric $F_c$ together are Coulomb friction that differs with the direction of motion."""
     mass = parameters["M"]
     coulomb, offset = mass * parameters.get("coulomb_friction.Fc", 0.0), mass * parameters.get("constant_force.f0", 0.0)
     return {"forward_N": coulomb - offset, "backward_N": coulomb + offset}

@@ -1,8 +1,8 @@
 """``torchpaml diagnose``: the diagnosis of a physics model on measured records, from the command line.
 
 ``torchpaml diagnose --data TRAIN.csv [MORE.csv ...] --validation VAL.csv [...] --physics oscillator
-[--fix omega0=2.0] --out DIR`` fits the library physics (every parameter learnable unless fixed), ranks the library effects as
-the missing one, climbs the model ladder, fits the Chebyshev residual on top and writes the report
+[--fix omega0=2.0] --out DIR`` fits the library physics (every parameter learnable unless fixed), ranks the
+library effects as the missing one, climbs the model ladder, fits the Chebyshev residual on top and writes the report
 (diagnosis.json, report.html, figures/, tensorboard/). ``torchpaml diagnose --config FILE.yaml`` takes
 the same keys from YAML, where ``physics`` and ``candidates`` may also be user classes
 (``class_path``/``init_args``), so user-defined physics and user-defined effects are diagnosed the
