@@ -32,7 +32,7 @@ def _write(tmp_path, text):
 
 
 def test_missing_column(tmp_path):
-    with pytest.raises(DataError, match=r"missing column\(s\) \['y'\].*expected it to contain 't,u,y'"):
+    with pytest.raises(DataError, match=r"missing column\(s\) \['y'\].*expected 't,u,y'"):
         Record.from_csv(_write(tmp_path, "t,u\n0,1\n1,2\n"))
 
 

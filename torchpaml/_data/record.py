@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 import json
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -55,10 +56,13 @@ class Record:
                 f"{where}: length mismatch, t has {len(self.t)} samples, u {len(self.u)}, y {len(self.y)}; "
                 "every column needs one value per time sample"
             )
-        for column, values in (("t", self.t), ("u", self.u), ("y", self.y)):
-            bad = ~torch.isfinite(values)
+        columns = [("t", self.t[:, None])] + [(name, values[:, [i]]) for letter, key, values in (
+            ("u", "inputs", self.u), ("y", "outputs", self.y)) for i, name in enumerate(_column_names(
+                self.metadata.get(key), letter, values.shape[1]))]
+        for column, values in columns:
+            bad = ~torch.isfinite(values[:, 0])
             if bool(bad.any()):
-                row = int(bad.reshape(len(values), -1).any(dim=1).nonzero()[0])
+                row = int(bad.nonzero()[0])
                 raise DataError(
                     f"{where}: column {column!r} has {int(bad.sum())} NaN/inf value(s), first at row {row}; "
                     "drop or interpolate those samples before fitting"
@@ -126,18 +130,21 @@ class Record:
 
     # -- I/O ---------------------------------------------------------------------------------
     @classmethod
-    def from_csv(cls, path: str | Path, name: str | None = None, hold: str | None = None) -> Record:
+    def from_csv(cls, path: str | Path, name: str | None = None, hold: str | None = None,
+                 channels: tuple[Sequence[str], Sequence[str]] | None = None) -> Record:
         """Read a CSV whose header holds ``t`` and the channels (a first ``# {json}`` line is metadata; extra columns
         are ignored):
 
         * ``t,u,y``: one input and one output;
         * ``t,u1,u2,…,y1,y2,…``: several, in the order of their numbers;
-        * named channels, declared in the metadata, e.g. ``# {"inputs": ["force"], "outputs": ["x1", "x2"]}``.
+        * named channels, declared in the metadata, e.g. ``# {"inputs": ["force"], "outputs": ["x1", "x2"]}``;
+        * named channels that ``channels`` expects, ``(input names, output names)`` (a physics' ``input_names`` and
+          ``output_names``), as data loggers write them: ``t,force,x1,x2`` with no metadata line.
 
         ``hold``: how the input moved between samples; default the metadata's ``"hold"``, else ``"foh"``."""
         path = Path(path)
         if not path.exists():
-            raise DataError(f"no such file: {path}")
+            raise DataError(f"no such file: {path}" + ("" if path.is_absolute() else f" (in the folder {Path.cwd()})"))
         lines = path.read_text().splitlines()
         metadata = {}
         if lines and lines[0].startswith("#"):
@@ -146,7 +153,11 @@ class Record:
         if not lines or not lines[0].strip():
             raise DataError(f"{path} is empty; expected a header 't,u,y' followed by one row per sample")
         header = [h.strip() for h in lines[0].split(",")]
-        inputs, outputs = _channels(header, metadata, path)
+        inputs, outputs = _channels(header, metadata, path, channels)
+        for key, names, given in (("inputs", inputs, channels[0] if channels else ()),
+                                  ("outputs", outputs, channels[1] if channels else ())):
+            if key not in metadata and given and names == list(given):
+                metadata = {**metadata, key: names}  # the record names them as its header does
         rows = [r for r in lines[1:] if r.strip()]
         if not rows:
             raise DataError(f"{path} has a header but no data rows")
@@ -187,7 +198,7 @@ class Record:
         :meth:`from_csv`."""
         path = Path(path)
         if not path.exists():
-            raise DataError(f"no such file: {path}")
+            raise DataError(f"no such file: {path}" + ("" if path.is_absolute() else f" (in the folder {Path.cwd()})"))
         with np.load(path, allow_pickle=False) as archive:
             missing = [c for c in _COLUMNS if c not in archive.files]
             if missing:
@@ -214,23 +225,35 @@ def _names(declared: list[str] | None, letter: str, count: int) -> list[str]:
     return [letter] if count == 1 else [f"{letter}{i}" for i in range(1, count + 1)]
 
 
-def _channels(header: list[str], metadata: dict, path: Path) -> tuple[list[str], list[str]]:
-    """The input and output columns of a CSV's ``header`` (:meth:`Record.from_csv`); raises :class:`DataError` naming
-    the columns that are missing."""
+def _column_names(declared: list[str] | None, letter: str, count: int) -> list[str]:
+    """The channels' names where the metadata declares one per column, else ``u`` (one) or ``u1, u2, …``: what a
+    message names a column by, before the names are checked (:func:`_names`)."""
+    return _names(declared if declared is not None and len(declared) == count else None, letter, count)
+
+
+def _channels(header: list[str], metadata: dict, path: Path,
+              expected: tuple[Sequence[str], Sequence[str]] | None = None) -> tuple[list[str], list[str]]:
+    """The input and output columns of a CSV's ``header`` (:meth:`Record.from_csv`; ``expected``: the names a physics
+    gives its channels); raises :class:`DataError` naming the columns that are missing and how to name them."""
     found = []
-    for letter, key in (("u", "inputs"), ("y", "outputs")):
+    for i, (letter, key) in enumerate((("u", "inputs"), ("y", "outputs"))):
+        named = list(expected[i]) if expected is not None else []
         if key in metadata:
             names = list(metadata[key])
         elif letter in header:
             names = [letter]
+        elif named and all(n in header for n in named):
+            names = named
         else:
             names = sorted((h for h in header if re.fullmatch(rf"{letter}\d+", h)), key=lambda h: int(h[1:]))
         found.append(names or [letter])
     missing = [c for c in ["t", *found[0], *found[1]] if c not in header]
     if missing:
-        raise DataError(f"{path}: missing column(s) {missing}; the header is {header}, expected it to contain "
-                        "'t,u,y' (or 't,u1,u2,…,y1,y2,…', or the channels the metadata's \"inputs\" and \"outputs\" "
-                        "name)")
+        rest = [h for h in header if h != "t"]
+        example = json.dumps({"inputs": rest[:1], "outputs": rest[1:]})
+        raise DataError(f"{path}: missing column(s) {missing}; the header is {header}, expected 't,u,y' or "
+                        f"'t,u1,…,y1,…'; to keep your names, put a first line `# {example}` naming the input and "
+                        "output columns (or name them in the physics' input_names and output_names)")
     return found[0], found[1]
 
 

@@ -56,7 +56,8 @@ from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters
 from torchpaml._fit.initial_state import InitialState, Rest
 from torchpaml._physics.base import AbstractPhysics
-from torchpaml._physics.checks import check_channels, check_physics
+from torchpaml._physics.checks import check_channels, check_physics, check_time_scale
+from torchpaml._data.checks import check_outputs_vary, check_scales_agree
 from torchpaml._physics.effects import AbstractEffect
 from torchpaml._physics.terms import TermLibrary
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
@@ -228,8 +229,9 @@ def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alp
     with torch.no_grad():
         hybrid_train = mismatch(joined_in_time(y), joined_in_time(y_physics) + per_record(residual, t, u))
         v_t, v_u, v_y = _signals(validation)
-        v_physics = joined_in_time([o[None] for o in step.validation_outputs])
-        hybrid_validation = mismatch(joined_in_time(v_y), v_physics + per_record(residual, v_t, v_u))
+        outputs = step.validation_outputs  # laid out as _signals lays the records: one batch, or one per record
+        v_physics = torch.stack(outputs) if isinstance(v_y, torch.Tensor) else [o[None] for o in outputs]
+        hybrid_validation = mismatch(joined_in_time(v_y), joined_in_time(v_physics) + per_record(residual, v_t, v_u))
     noise, linear_share = _noise_like(train[0], joined_in_time(y_physics)[0, :len(train[0].t)])
     adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
                                residual_white=noise, linear_share=linear_share)
@@ -321,13 +323,19 @@ def _stages(ranker: Ranker | None, discovery: Discoverer | None, legacy: dict) -
 
 def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect], train: list[Record],
                    validation: list[Record], discovery: Discoverer | None) -> None:
-    """Before any fit: the physics runs on the first record, the discovery's terms parse, and every record has more
-    samples than twice the most parameters a fit takes and a uniform grid (the residual's exact filter)."""
+    """Before any fit: the records' channels are the physics', each output varies and keeps one unit across records
+    (:mod:`~torchpaml._data.checks`), the physics runs on the first record, each record's time step can be in
+    seconds for it, the discovery's terms parse, and every record has more samples than twice the most parameters a
+    fit takes and a uniform grid (the residual's exact filter)."""
     most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
                                                  for c in candidates), default=0)
     for record in train + validation:
         check_channels(physics, record)
+    check_outputs_vary(train + validation)
+    check_scales_agree(train + validation)
     check_physics(physics, train[0].t, train[0].u)
+    for record in train + validation:
+        check_time_scale(physics, record)
     if discovery is not None:
         discovery.library.build(physics)  # a user term that does not parse is named before any fit
     for record in train + validation:

@@ -3,8 +3,10 @@ r"""Residual analysis like MATLAB's ``resid``: is $e = y - \hat y$ white, and in
 With $N$ samples, the normalised autocorrelation $\rho_{ee}(\tau) = r_{ee}(\tau)/r_{ee}(0)$ of a white
 residual lies within $\pm z_{1-\beta/2}/\sqrt N$ with probability $1 - \beta$ at every lag $\tau \ne 0$.
 The cross-correlation $\rho_{ue}(\tau) = r_{ue}(\tau)/\sqrt{r_{uu}(0)\,r_{ee}(0)}$ of an $e$ independent
-of $u$ lies within $\pm z_{1-\beta/2}\sqrt{P/N}$, $P = \sum_k \rho_{uu}(k)\rho_{ee}(k)$ (Bartlett's
-formula; $P = 1$ when either signal is white). Here
+of $u$ lies within $\pm z_{1-\beta/2}\sqrt{P/N}$, $P = \sum_{|k| \le L} \rho_{uu}(k)\rho_{ee}(k)$ (Bartlett's
+formula, its sum truncated at the $L$ lags examined, as its estimate must be: over every lag of a periodic input
+the sample correlations' products add up to a band of ±0.5 that no lag crosses; $P = 1$ when either signal is
+white). Here
 $r_{ab}(\tau) = \frac1N\sum_t a(t+\tau)\,b(t)$ after removing the means. A correlation outside
 the bounds says the model misses dynamics: $\rho_{ee}$ shows unmodelled dynamics of any kind,
 and $\rho_{ue}$ at positive lags shows dynamics from the input that the model does not reproduce.
@@ -73,7 +75,7 @@ def residual_analysis(u, e, lags: int = 25, confidence: float = 0.99) -> Residua
     rho_ee, rho_uu = r_ee / r_ee[zero], r_uu / r_uu[zero]
     z = float(stats.norm.ppf(0.5 + confidence / 2))
     cross = r_ue[zero - lags : zero + lags + 1] / np.sqrt(r_uu[zero] * r_ee[zero])
-    bartlett = float(np.sum(rho_ee * rho_uu))
+    bartlett = float(np.sum((rho_ee * rho_uu)[zero - lags : zero + lags + 1]))
     return ResidualAnalysis(
         lags=np.arange(lags + 1),
         autocorrelation=rho_ee[zero : zero + lags + 1],

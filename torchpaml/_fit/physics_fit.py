@@ -45,6 +45,7 @@ from torchpaml._fit.trust_region import TrustRegionProblem
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.checks import check_channels
+from torchpaml._data.checks import check_outputs_vary
 from torchpaml._simulate.lti import exact_step
 from torchpaml._simulate.stiffness import STIFF_SUBSTEPS
 from torchpaml._simulate.solvers import TRBDF2, Auto, Exact, FixedStep, Solver, engine_solver
@@ -174,6 +175,7 @@ def _checked_unknowns(physics: AbstractPhysics, records: list[Record], initial_s
                                  f"({len(records)}), got {len(start_states)} with {initial_state!r}")
     for record in records:
         check_channels(physics, record)
+    check_outputs_vary(records)
     names = physics.learnable_names()
     if not names and not initial_state.estimated:
         raise ConfigurationError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")

@@ -12,6 +12,7 @@ raises :class:`~torchpaml.PhysicsError` in one line naming the class and the met
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import torch
@@ -19,10 +20,13 @@ import torch
 from torchpaml._errors import ConfigurationError, DataError, PhysicsError
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics
 
-__all__ = ["check_channels", "check_physics"]
+__all__ = ["TIME_SCALE_LIMIT", "check_channels", "check_degrees_of_freedom", "check_physics", "check_time_scale"]
 
 #: Samples of the record the methods are evaluated on.
 SAMPLES = 4
+#: $\omega\,\Delta t$ beyond which a record's time step cannot be in seconds for a physics
+#: (:func:`check_time_scale`): five periods of its fastest oscillation between two samples.
+TIME_SCALE_LIMIT = 10 * math.pi
 
 
 def _evaluate(name: str, method: str, call: Callable[[], torch.Tensor], expected: tuple[int, ...], meaning: str,
@@ -64,9 +68,41 @@ def check_channels(physics: AbstractPhysics, record) -> None:
                             f"or the physics' {what}_names")
 
 
+def check_degrees_of_freedom(physics: AbstractPhysics) -> None:
+    """:class:`~torchpaml.ConfigurationError` in one line where ``degrees_of_freedom`` names a state that the physics
+    does not have (its ``state_names``)."""
+    base = physics.without_effects()
+    for pair in base.degrees_of_freedom:
+        unknown = [name for name in pair if name not in base.state_names]
+        if unknown:
+            raise ConfigurationError(f"{base.display_name}.degrees_of_freedom names state(s) {unknown} in {tuple(pair)}, "
+                                     f"but its states are {list(base.state_names)}; name a (position, velocity) pair "
+                                     "of state_names")
+
+
+def check_time_scale(physics: AbstractPhysics, record) -> None:
+    r""":class:`~torchpaml.DataError` in one line where ``record``'s time step cannot be in seconds for ``physics``: its
+    linearisation at the initial state and the first input, $A = \partial f/\partial x$, oscillates at
+    $\omega = \max|\mathrm{Im}\,\lambda(A)|$ rad/s, and $\omega\,\Delta t$ above :data:`TIME_SCALE_LIMIT` means
+    five periods or more between two samples: no sampling of that physics, but the sign of a time written in
+    milliseconds. Physics whose methods autograd cannot differentiate is not checked here (its fit says more)."""
+    x0, dt = physics.initial_state(1).to(record.u), float(record.t[1] - record.t[0]) if len(record.t) > 1 else 0.0
+    try:
+        A = torch.autograd.functional.jacobian(lambda x: physics.derivative(record.t[:1], x, record.u[:1]), x0)
+        omega = float(torch.linalg.eigvals(A.reshape(x0.shape[1], x0.shape[1])).imag.abs().max())
+    except (RuntimeError, TypeError):  # not differentiable by autograd: the fit reports what goes wrong
+        return
+    if omega * dt > TIME_SCALE_LIMIT:
+        raise DataError(f"record {record.name!r} is sampled every {dt:.6g} s, but {physics.display_name} at its starting "
+                        f"parameters oscillates at {omega:.3g} rad/s, {omega * dt / (2 * math.pi):.3g} periods per "
+                        "sample: give t in seconds (a time in milliseconds is divided by 1000), or start the physics' "
+                        "parameters nearer the device's")
+
+
 def check_physics(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor) -> None:
     """Evaluate ``physics``' methods once (module docstring) on t (time,), u (time, n_input); ``PhysicsError`` if
-    one fails."""
+    one fails. Its ``degrees_of_freedom`` are checked first (:func:`check_degrees_of_freedom`)."""
+    check_degrees_of_freedom(physics)
     k = min(SAMPLES, len(t))
     name, parameters = physics.display_name, physics.physical_parameters()
     x, u, t = physics.initial_state(k).to(u), u[:k], t[:k]

@@ -51,15 +51,16 @@ def _numpy(x) -> np.ndarray:
     return x.detach().cpu().numpy().reshape(-1) if isinstance(x, torch.Tensor) else np.asarray(x).reshape(-1)
 
 
-def overlay_figure(t, measured, models: dict, title: str = "") -> Figure:
-    """Measured output and each model's output over time (``models``: label -> signal)."""
+def overlay_figure(t, measured, models: dict, title: str = "", ylabel: str = "y") -> Figure:
+    """Measured output and each model's output over time (``models``: label -> signal), the y-axis named
+    ``ylabel`` (the output channel's name)."""
     fig = Figure(figsize=(9, 3.2), tight_layout=True)
     ax = fig.add_subplot()
     t = _numpy(t)
     ax.plot(t, _numpy(measured), color="black", lw=1.2, label="measured")
     for label, signal in models.items():
         ax.plot(t, _numpy(signal), lw=1.0, label=label)
-    ax.set(xlabel="t [s]", ylabel="y", title=title or "measured vs models")
+    ax.set(xlabel="t [s]", ylabel=ylabel, title=title or "measured vs models")
     ax.legend(loc="upper right", fontsize=8)
     return fig
 
@@ -227,7 +228,8 @@ def _channel_figures(diagnosis: Diagnosis) -> dict[str, Figure]:
                    s.validation_outputs[0][:, c] for s, score in zip(diagnosis.compared_models, scores or (0, 0))}
         where = f"output {channel.name}, " if several else ""
         figures[f"compare{suffix}"] = overlay_figure(record.t, record.y[:, c], outputs,
-                                                     f"measured vs models, {where}validation record {record.name!r}")
+                                                     f"measured vs models, {where}validation record {record.name!r}",
+                                                     channel.name)
         figures[f"residual_analysis{suffix}"] = residual_analysis_figure(channel.residuals)
         figures[f"error_by_amplitude{suffix}"] = amplitude_figure(channel.by_input, channel.by_output)
     return figures

@@ -57,6 +57,9 @@ def _tensorboard(diagnosis: Diagnosis, content: dict, figures: dict, folder: Pat
     for step, rung in enumerate(diagnosis.ladder.steps):
         writer.add_scalar("ladder/nrmse_validation", rung.nrmse_validation, step)
         writer.add_scalar("ladder/nrmse_train", rung.nrmse_train, step)
+    for channel in diagnosis.channels:  # each output's validation mismatch: the fitted physics (0), the final model (1)
+        for step, value in enumerate((channel.physics, channel.final)):
+            writer.add_scalar(f"channels/{channel.name}/nrmse_validation", value, step)
     for entry in diagnosis.ranking.entries:
         writer.add_scalar(f"ranking/score/{entry.effect}", entry.score, 0)
         if entry.refit is not None:
@@ -109,7 +112,8 @@ def _discovery_section(found: dict | None) -> str:
 def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
     base = content["baseline"]
     ranking = _table(
-        ["rank", "effect", "score", "validation %", "improvement", "parameters", "refit"],
+        ["rank", "effect", "score", "validation %", f"Δ{diagnosis.ranking.rule.criterion.upper()} (criterion gain)",
+         "parameters", "refit"],
         [[i, e["effect"], f"{e['score']:.3f}", "undecided" if e["undecided"] is not None else _pct(e["nrmse_validation"]),
           "" if e["improvement"] is None else f"{e['improvement']:.1f}",
           ", ".join(f"{k}={v:.4g}" for k, v in e["parameters"].items())

@@ -16,6 +16,7 @@ import re
 from pathlib import Path
 from typing import Literal
 
+import yaml
 from jsonargparse import ActionConfigFile, ArgumentError, ArgumentParser
 
 from torchpaml._errors import ConfigurationError
@@ -35,6 +36,8 @@ REPEATED = {"--fix": "--fix+", "--effect": "--effects+", "--term": "--terms+"}
 SWITCHES = ("--discover", "--verbose", "--quiet")
 #: Options that take one file or several: ``--data a.csv b.csv`` is ``--data '["a.csv", "b.csv"]'``.
 RECORD_LISTS = ("--data", "--validation")
+#: The keys whose relative paths a config file gives from its own folder.
+RECORD_KEYS = ("data", "validation")
 
 
 def _physics(physics: str | AbstractPhysics, fix: list[str] | None) -> AbstractPhysics:
@@ -163,14 +166,16 @@ def diagnose_command(
     return json.loads(path.read_text())
 
 
-def read_records(paths: str | Path | list, hold: str | None = None) -> list:
-    """The CSV record(s) at ``paths`` (one path or a list), each named by its file's stem."""
+def read_records(paths: str | Path | list, hold: str | None = None, physics: AbstractPhysics | None = None) -> list:
+    """The CSV record(s) at ``paths`` (one path or a list), each named by its file's stem; where ``physics`` names its
+    channels (``input_names``, ``output_names``), a header of those names is read without a metadata line."""
     from torchpaml._data import Record
 
     paths = [paths] if isinstance(paths, str | Path) else list(paths)
     if not paths:
         raise ConfigurationError("no record given: name one CSV file or more (--data a.csv b.csv)")
-    return [Record.from_csv(path, Path(path).stem, hold=hold) for path in paths]
+    channels = None if physics is None else (physics.input_names, physics.output_names)
+    return [Record.from_csv(path, Path(path).stem, hold=hold, channels=channels) for path in paths]
 
 
 def diagnose_to_folder(physics: AbstractPhysics, candidates: list, data: str | Path | list,
@@ -185,7 +190,7 @@ def diagnose_to_folder(physics: AbstractPhysics, candidates: list, data: str | P
     from torchpaml._diagnostics.diagnosis import diagnose
     from torchpaml._render.report import write_report
 
-    train, held_out = read_records(data, hold), read_records(validation, hold)
+    train, held_out = read_records(data, hold, physics), read_records(validation, hold, physics)
     diagnosis = diagnose(physics, candidates, train, held_out, **options)
     write_report(diagnosis, out)
     return diagnosis
@@ -253,6 +258,19 @@ def run_diagnose(argv: list[str], prog: str = "torchpaml diagnose") -> dict:
         config = parser.instantiate(config)
     except ValueError as error:  # a class that refuses its init_args (jsonargparse reports it as a union mismatch)
         raise ConfigurationError(config_mistake(str(error))) from None
-    del config["config"]
+    _beside_config(config, config.pop("config"), argv)
     with progress_lines(prog, enabled=not config["quiet"]):
         return diagnose_command(**config)
+
+
+def _beside_config(config: dict, files: list | None, argv: list[str]) -> None:
+    """The record paths (``data``, ``validation``) that a config file gives, relative to that file's folder, as
+    LightningCLI's users expect; those given on the command line stay relative to the current folder."""
+    for file in files or []:
+        content = yaml.safe_load(Path(file.absolute).read_text()) or {}
+        folder = Path(file.absolute).parent
+        for key in RECORD_KEYS:
+            if key in content and not any(a == f"--{key}" or a.startswith(f"--{key}=") for a in argv):
+                given = config[key]
+                config[key] = [str(folder / p) if not Path(p).is_absolute() else p for p in given] \
+                    if isinstance(given, list) else str(folder / given) if not Path(given).is_absolute() else given

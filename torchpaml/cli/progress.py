@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import sys
 import time
+import warnings
 from contextlib import contextmanager
 
 __all__ = ["progress_lines"]
@@ -13,7 +14,8 @@ __all__ = ["progress_lines"]
 @contextmanager
 def progress_lines(prog: str, enabled: bool = True):
     """While the block runs, the library's progress messages (``logging``, level INFO, logger ``torchpaml``) go to
-    stderr as ``prog [  12.3 s] message``; nothing when ``enabled`` is false. The handler is removed afterwards."""
+    stderr as ``prog [  12.3 s] message``, and so do Python warnings (``IdentifiabilityWarning: ...``, one line
+    without a source line); nothing when ``enabled`` is false. The handler is removed afterwards."""
     logger = logging.getLogger("torchpaml")
     if not enabled:
         yield
@@ -29,8 +31,10 @@ def progress_lines(prog: str, enabled: bool = True):
     level = logger.level
     logger.addHandler(handler)
     logger.setLevel(logging.INFO)
-    try:
-        yield
-    finally:
-        logger.removeHandler(handler)
-        logger.setLevel(level)
+    with warnings.catch_warnings():
+        warnings.showwarning = lambda message, category, *_: logger.warning("%s: %s", category.__name__, message)
+        try:
+            yield
+        finally:
+            logger.removeHandler(handler)
+            logger.setLevel(level)
