@@ -18,13 +18,18 @@ $$ \text{limit} = \min\big(\max(T,\; E\,t_1),\; t_{\text{deadline}} - t_{\text{s
 where $t_1$ is the costliest of the fit's first :data:`SCALE_EVALUATIONS` evaluations; until the first one ends, the
 deadline alone limits the fit.
 
-The ranking gives each refit $T = 10\,t_{\text{fit}}$, ten times its rung's own fit, and $E = 10\,n_{\max}$, ten full
-refits (``max_nfev`` evaluations each) at the refit's own cost per evaluation (:data:`REFIT_BUDGET`). The
-second term matters where the rung simulates on a cheaper path than the refit (a linear rung's exact path). So the
-budget binds where a refit's evaluations grow far costlier than its first (its parameters drift towards a stiff
-or unsettled model) or it needs far more of them than a fit may take, and not where a refit merely runs on the
-nonlinear engine. Being a time, it binds at a point that moves with the machine's speed: a candidate it stops is
-reported undecided, never decided by it.
+The ranking gives each refit $T = 10\,t_{\text{fit}}$, ten times its rung's own fit (:data:`REFIT_BUDGET`), and
+no count of evaluations. A rung's fit is all the fitting that made its model: the fit of the physics on the first
+rung; on the next ones, the refit that found the added effect and the fit that takes it to the last digits. A linear
+rung is fitted on the exact path, far cheaper than any refit on the nonlinear engine, so its yardstick is its fit
+redone at the refit's cost per evaluation: $E = 10\,n_{\text{fit}}$, ten times its fit's evaluations at the
+refit's own $t_1$. A rung's fit from its refit's optimum (which stopped at a criterion step of 0.1) needs a few
+evaluations: it may take :data:`RUNG_FIT_BUDGET` times its refit, and one over it leaves the rung at its refit's
+parameters, and says so. The discovery's fits take the limits of the ladder's last rung.
+
+The whole diagnosis has a deadline, :data:`DEFAULT_BUDGET` seconds by default, printed in its first line: a fit
+still running then stops, and those not started are not run (reported undecided). Being a time, a limit binds at a
+point that moves with the machine's speed: a candidate it stops is reported undecided, never decided by it.
 """
 
 from __future__ import annotations
@@ -36,7 +41,8 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
-__all__ = ["Budget", "OverBudget", "PROGRESS_SECONDS", "REFIT_BUDGET", "checkpoint"]
+__all__ = ["Budget", "DEFAULT_BUDGET", "OverBudget", "PROGRESS_SECONDS", "REFIT_BUDGET", "RUNG_FIT_BUDGET",
+           "checkpoint"]
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +50,10 @@ log = logging.getLogger(__name__)
 PROGRESS_SECONDS = 5.0
 #: A ranking's refit may take this many times its rung's own fit (module docstring).
 REFIT_BUDGET = 10.0
+#: A rung's fit from the optimum of the refit that found its effect may take this many times that refit.
+RUNG_FIT_BUDGET = 2.0
+#: Seconds a whole diagnosis may take by default (``diagnose(budget=)``, ``--budget``): ten minutes.
+DEFAULT_BUDGET = 600.0
 #: $t_1$ is the costliest of a fit's first this many evaluations: the step check at a fit's start may raise the
 #: substeps after the first one (a discovery screen of the pendulum was stopped at 0.5 s, 100 times a first
 #: evaluation that the next ones outcost).
@@ -103,9 +113,23 @@ class Budget:
             return cap
         return min(max(self.seconds or 0.0, (self.evaluations or 0.0) * self._scale), cap)
 
-    def restarted(self, label: str) -> Budget:
-        """A budget with these limits, for another fit called ``label``, counted from now."""
-        return Budget(label, self.seconds, self.evaluations, self.deadline)
+    def restarted(self, label: str, share: float = 1.0) -> Budget:
+        """A budget with ``share`` of these limits (the deadline whole), for another fit called ``label``, counted
+        from now."""
+        return Budget(label, None if self.seconds is None else share * self.seconds,
+                      None if self.evaluations is None else share * self.evaluations, self.deadline)
+
+    def describe(self) -> str:
+        """The limits in words, for a progress line: ``"12 s"``, ``"the longer of 12 s and 150 evaluations at its own
+        cost, within the deadline in 580 s"``."""
+        own = f"{self.seconds:.3g} s" if self.seconds is not None else ""
+        if self.evaluations is not None:
+            evaluations = f"{self.evaluations:.0f} evaluations at its own cost"
+            own = f"the longer of {own} and {evaluations}" if own else evaluations
+        if self.deadline == math.inf:
+            return own or "no limit"
+        deadline = f"the deadline in {max(self.deadline - time.perf_counter(), 0.0):.0f} s"
+        return f"{own}, within {deadline}" if own else deadline
 
     @property
     def expired(self) -> bool:

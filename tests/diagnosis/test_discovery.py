@@ -106,8 +106,10 @@ def test_a_search_past_the_diagnosis_budget_stops_and_names_what_it_left_undecid
                                    deadline=time.perf_counter())
     content = discovery_to_dict(found)
     assert not content["recommended"] and content["terms"] == [], content
-    assert len(content["undecided"]) == 2 and "over budget" in content["undecided"][0], content
-    assert content["undecided"][1].startswith("the screen beside []: the diagnosis' budget was spent after 0 of")
+    assert len(content["undecided"]) == 3, content
+    assert content["undecided"][0].startswith("the neural rate: over budget") and "over budget" in content[
+        "undecided"][1], content
+    assert content["undecided"][2].startswith("the screen beside []: the diagnosis' budget was spent after 0 of")
     assert "undecided: " in content["reason"]
 
 

@@ -56,7 +56,7 @@ def test_a_lag_the_data_do_not_have_is_a_failed_refit_not_a_failed_diagnosis(mon
     assert gated.entries[0].refit is None and "first-order score" in gated.entries[0].refit_reason
     monkeypatch.setattr(refits_module, "GATE_MARGIN", math.inf)
     ranking = rank_missing_effects(physics_with_force, [InputLag(), QuadraticStiffness()], train, validation,
-                                   shortlist=2)
+                                   shortlist=2, refit_budget=1000.0)  # the stiff refit's whole path, not its budget
     lag = next(e for e in ranking.entries if e.effect == "input_lag")
     assert lag.failure is None and isinstance(lag.refit.solver, TRBDF2) and lag.improvement < 0
     assert ranking.recommended is None  # and the other candidate was refitted, and not accepted

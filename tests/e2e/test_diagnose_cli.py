@@ -154,14 +154,16 @@ def test_the_contract_run_writes_json_figures_html_and_tensorboard(measured):
     series = [e.value for e in events.Scalars("ladder/nrmse_validation")]
     assert series == pytest.approx([step["nrmse_validation"] for step in ladder], rel=1e-6)
     assert {f"diagnose/{name}" for name in FIGURES} <= set(events.Tags()["images"])
-    # --discover runs on the ladder's last rung, which lacks nothing: the closed form is "0"
+    # --discover on the ladder's last rung, which lacks nothing (complete at the noise level): it says so and stops
     discovery = json.loads((out / "discovery.json").read_text())
-    assert {"expression", "terms", "recommended", "nrmse_validation", "library_best"} <= set(discovery)
+    assert {"expression", "terms", "recommended", "nrmse_validation", "library_best", "searched"} <= set(discovery)
     assert set(discovery["nrmse_validation"]) == {"physics", "library_best", "neural", "discovered"}
     assert discovery["expression"] == "0" and discovery["terms"] == [] and not discovery["recommended"], discovery
+    assert not discovery["searched"] and discovery["nrmse_validation"]["neural"] is None
+    assert "is complete at this noise level" in discovery["reason"] and "--discover_always" in discovery["reason"]
     assert discovery["nrmse_validation"]["physics"] == pytest.approx(ladder[1]["nrmse_validation"], rel=1e-9)
-    assert report["discovery"] == discovery
-    assert (out / "figures" / "discovery.png").stat().st_size > 1000 and 'src="figures/discovery.png"' in html
+    assert report["discovery"] == discovery and "Discovery: " in report["verdict"]
+    assert not (out / "figures" / "discovery.png").exists() and 'src="figures/discovery.png"' not in html
     assert "Discovery" in html and not (out / "discovered_effect.yaml").exists()
     assert report["schema_version"] == discovery["schema_version"] == 1
     spans = re.findall(r"`([^`]+)`", OUTPUTS_PAGE.read_text())
@@ -307,5 +309,8 @@ def test_progress_lines_on_stderr_unless_quiet(measured, tmp_path, monkeypatch, 
     if quiet:
         assert lines == [], err
     else:
-        assert lines[0] == "fitting Oscillator on 600 samples" and "refitting Oscillator + quadratic_damping" in lines
+        assert lines[0] == ("diagnosing Oscillator on 1 training and 1 validation record(s), 1200 samples; budget: "
+                            "600 s for the whole diagnosis (budget=, --budget)")
+        assert lines[1] == "fitting Oscillator on 600 samples"
+        assert any(line.startswith("refitting Oscillator + quadratic_damping (at most ") for line in lines), lines
         assert lines[-1] == "fitting the Chebyshev residual on top"

@@ -46,13 +46,16 @@ LINEAR_SHARE = 0.5
 @dataclass(frozen=True)
 class Adequacy:
     """The verdict, the ratios it rests on, and a sentence for reports. ``covering``: adequate, but a linear filter
-    of the input explains most of the physics' residual, the mark of a missing dynamic effect (module docstring)."""
+    of the input explains most of the physics' residual, the mark of a missing dynamic effect (module docstring);
+    ``complete``: the physics' residual is noise that the orthogonal residual cannot reduce (physics complete at
+    this noise level)."""
 
     inadequate: bool
     train_ratio: float
     validation_ratio: float | None
     message: str
     covering: bool = False
+    complete: bool = False
 
 
 def assess_adequacy(
@@ -73,7 +76,7 @@ def assess_adequacy(
         return Adequacy(False, train_ratio, validation_ratio, (
             "physics complete at this noise level: its training residual is uncorrelated with the input (noise, "
             f"white or coloured), and the orthogonal residual has nothing to add ({100 * physics_train:.1f} % -> "
-            f"{100 * hybrid_train:.1f} % on training); use the physics alone"))
+            f"{100 * hybrid_train:.1f} % on training); use the physics alone"), complete=True)
     reasons = []
     if train_ratio > closes:
         reasons.append(

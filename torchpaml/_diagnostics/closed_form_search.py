@@ -5,13 +5,12 @@ support (:class:`Regressed`), refitted with honest numbers, and, where first ord
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
 
-from torchpaml._budget import REFIT_BUDGET, Budget, OverBudget
+from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Record
 from torchpaml._diagnostics.closed_form import fit_closed_form, refit_closed_form
 from torchpaml._diagnostics.regressors import Columns
@@ -125,12 +124,11 @@ class ClosedFormSearch:
     ``undecided`` names the forms a budget stopped."""
 
     def __init__(self, ranking: Ranking, library_best: EffectEvidence | None, train: Sequence[Record],
-                 validation: Sequence[Record], data: Columns, regressed: Regressed, max_nfev: int,
-                 deadline: float | None):
+                 validation: Sequence[Record], data: Columns, regressed: Regressed, max_nfev: int, limits: Budget):
         self.baseline, self.rule, self.initial_state = ranking.baseline, ranking.rule, ranking.initial_state
         self.library_best, self.train, self.validation = library_best, train, validation
         self.data, self.regressed, self.max_nfev = data, regressed, max_nfev
-        self.end = math.inf if deadline is None else deadline
+        self.limits = limits  # each refit's (:mod:`torchpaml._budget`), restarted for each; a screen takes its share
         self.undecided: list[str] = []
 
     def first_order(self, kept: list[Pair]) -> list[float] | None:
@@ -145,8 +143,8 @@ class ClosedFormSearch:
     def refitted(self, kept: list[Pair]) -> Judged:
         """The closed form of ``kept`` refitted, whether it is missing (:func:`_judge`) and why."""
         form = ", ".join(f"{t} ({e})" for e, t in kept)
-        log.info("discovery: refitting %s", form)
-        budget = Budget(f"discovery: refitting {form}", evaluations=REFIT_BUDGET * self.max_nfev, deadline=self.end)
+        budget = self.limits.restarted(f"discovery: refitting {form}")
+        log.info("discovery: refitting %s (at most %s)", form, budget.describe())
         try:
             score = refit_closed_form(self.baseline.model, kept, self.first_order(kept), self.data.widths, self.train,
                                       self.validation, self.rule, self.max_nfev, self.initial_state, self.first_order,
@@ -165,8 +163,7 @@ class ClosedFormSearch:
         extras = [pairs[i] for i in self.regressed.usable
                   if pairs[i] not in base and base + [pairs[i]] != proposed]  # refitted already
         for i, extra in enumerate(extras, 1):
-            budget = Budget(f"discovery: screening {extra[1]}", evaluations=REFIT_BUDGET * SCREEN_NFEV,
-                            deadline=self.end)
+            budget = self.limits.restarted(f"discovery: screening {extra[1]}", SCREEN_NFEV / self.max_nfev)
             if budget.expired:
                 self.undecided.append(f"the screen beside [{', '.join(t for _, t in base)}]: the diagnosis' budget "
                                       f"was spent after {i - 1} of {len(extras)} terms")

@@ -28,6 +28,7 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
 from __future__ import annotations
 
 import logging
+import math
 import time
 import warnings
 from collections.abc import Sequence
@@ -45,7 +46,7 @@ from torchpaml._diagnostics.ladder import Ladder, model_ladder
 from torchpaml._diagnostics.ranker import Ranker
 from torchpaml._diagnostics.results import ModelScore, Ranking
 from torchpaml._diagnostics.scoring import as_records
-from torchpaml._budget import REFIT_BUDGET
+from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET, Budget
 from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.validity import AmplitudeBins
 from torchpaml._errors import ConfigurationError, DataError
@@ -150,13 +151,22 @@ class Diagnosis:
                      f"mismatch {100 * base.nrmse_validation:.2f} %.")
         verdict = f"{found}{self._per_channel()} Chebyshev residual on the final model: " \
                   f"{self.hybrids[-1].adequacy.message.rstrip('.')}."
+        stopped = [ranking for ranking in self.ladder.rankings if ranking.fit_over_budget is not None]
+        if stopped:
+            verdict += (" Over budget, these rungs keep the parameters of the refit that found their effect (fitted to "
+                        "a criterion step of 0.1, not to the last digits): " + "; ".join(
+                            f"{r.baseline.name} (its fit stopped after {r.fit_over_budget:.1f} s)" for r in stopped)
+                        + ". To fit them to the last digits, give those fits more time: --fit_budget "
+                        f"(Ranker(fit_budget=), default {RUNG_FIT_BUDGET:g} times the refit).")
         undecided = [(ranking.baseline.name, e) for ranking in self.ladder.rankings for e in ranking.undecided]
         if undecided:
             verdict += (" Undecided (their refits stopped over budget): "
                         + "; ".join(f"{e.effect} on {name} ({e.undecided:.1f} s)" for name, e in undecided)
                         + ". To decide them, give the refits more time: --refit_budget (Ranker(refit_budget=), default "
                         f"{REFIT_BUDGET:g} times the rung's fit) or --budget (budget=, seconds for the whole diagnosis).")
-        if self.discovery is not None:
+        if self.discovery is not None and not self.discovery.searched:
+            verdict += f" Discovery: {self.discovery.reason}."
+        elif self.discovery is not None:
             judged = "recommended" if self.discovery.recommended else "not recommended"
             verdict += f" Discovered force: {self.discovery.text} ({judged}: {self.discovery.reason})."
         elif self.hybrids[-1].adequacy.inadequate:
@@ -202,14 +212,15 @@ def _noise_like(record: Record, y_model: torch.Tensor) -> tuple[bool, float]:
     return noise, linear_share
 
 
-def hybrid_residual(step: ModelScore, train: Record | Sequence[Record], alpha: float
+def hybrid_residual(step: ModelScore, train: Record | Sequence[Record], alpha: float, deadline: float | None = None
                     ) -> tuple[ChebyshevHammerstein, torch.Tensor | list[torch.Tensor]]:
     """The Chebyshev-Hammerstein residual of the paper fitted on the training residual $y - \\hat y$ of ``step``'s
     fitted model (each record from its initial state), as :func:`diagnose` fits it on its first and last rung, and
     the model's training output $\\hat y$: (records, time, n_y) where the records have one length, else one
     (1, time_i, n_y) per record. ``alpha``: the residual's domain, max $|u|$ it takes
     (:class:`~torchpaml.DomainError` beyond). The records share one sampling interval (the first record's sets the
-    residual's band)."""
+    residual's band). ``deadline``: a ``time.perf_counter()`` time at which the pole search stops (the diagnosis'
+    budget); it prints its progress."""
     train = as_records(train)
     t, u, y = _signals(train)
     residual = ChebyshevHammerstein.for_sampling(alpha, uniform_step(train[0].elapsed), inputs=train[0].u.shape[1],
@@ -218,14 +229,17 @@ def hybrid_residual(step: ModelScore, train: Record | Sequence[Record], alpha: f
                for r, x0 in zip(train, step.train_states, strict=True)]
     y_physics = torch.cat(outputs) if isinstance(y, torch.Tensor) else outputs
     target = y - y_physics if isinstance(y, torch.Tensor) else [a - b for a, b in zip(y, y_physics, strict=True)]
-    fit_chebyshev_hammerstein(residual, t, u, target, rtol=DECISION_TOLERANCE)
+    budget = Budget(f"fitting the Chebyshev residual on {step.name}",
+                    deadline=math.inf if deadline is None else deadline)
+    fit_chebyshev_hammerstein(residual, t, u, target, rtol=DECISION_TOLERANCE, budget=budget)
     return residual, y_physics
 
 
-def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alpha: float) -> HybridScore:
+def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alpha: float,
+            deadline: float | None) -> HybridScore:
     """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid."""
     t, u, y = _signals(train)
-    residual, y_physics = hybrid_residual(step, train, alpha)
+    residual, y_physics = hybrid_residual(step, train, alpha, deadline)
     with torch.no_grad():
         hybrid_train = mismatch(joined_in_time(y), joined_in_time(y_physics) + per_record(residual, t, u))
         v_t, v_u, v_y = _signals(validation)
@@ -253,7 +267,7 @@ def diagnose(
     start_states: Sequence[torch.Tensor] | None = None,
     discovery: Discoverer | None = None,
     alpha: float | None = None,
-    budget: float | None = None,
+    budget: float | None = DEFAULT_BUDGET,
     **legacy,
 ) -> Diagnosis:
     """Run the whole diagnosis (module docstring).
@@ -271,20 +285,25 @@ def diagnose(
             (:class:`~torchpaml.Discoverer`; ``Discoverer(library=TermLibrary(terms=["x**2*sign(v)"]))`` adds the
             user's own terms); default ``None``: no discovery.
         alpha: Chebyshev domain of the residual; default 1.05 max |u| over all records.
-        budget: seconds for the refits of the ladder and of the discovery's search, counted from the call: a refit
-            still running then stops, and those not started are not run; each is reported undecided
-            (``EffectEvidence.undecided``, ``Discovery.undecided``, named in the verdict). Default: none; each refit
-            keeps its own budget (``Ranker.refit_budget``, :mod:`torchpaml._budget`).
+        budget: seconds for the whole diagnosis, counted from the call (default :data:`~torchpaml._budget.DEFAULT_BUDGET`,
+            600 s; ``None``: no limit), printed in its first progress line: a refit still running then stops, and
+            those not started are not run, each reported undecided (``EffectEvidence.undecided``,
+            ``Discovery.undecided``, named in the verdict); a rung's fit keeps its refit's parameters
+            (``Ranking.fit_over_budget``); the residual's pole search keeps its poles. Within it, each refit has its
+            own limit (``Ranker.refit_budget``, :mod:`torchpaml._budget`).
         legacy: the keywords of the earlier signature, still taken with a ``DeprecationWarning``: ``discover`` and
             ``terms`` (now ``discovery=Discoverer(...)``), and ``rule``, ``shortlist``, ``probe``, ``max_nfev`` and
             ``refit_budget`` (now ``ranker=Ranker(...)``).
     """
     ranker, discovery = _stages(ranker, discovery, legacy)
     if budget is not None and not budget > 0:
-        raise ConfigurationError(f"budget is the seconds the diagnosis' refits may take, > 0; got {budget}")
+        raise ConfigurationError(f"budget is the seconds the whole diagnosis may take, > 0; got {budget}")
     deadline = None if budget is None else time.perf_counter() + budget
     train, validation = as_records(train), as_records(validation)
     _check_records(physics, candidates, train, validation, discovery)
+    log.info("diagnosing %s on %d training and %d validation record(s), %d samples; budget: %s (budget=, --budget)",
+             physics.display_name, len(train), len(validation), sum(len(r.t) for r in train + validation),
+             "none" if budget is None else f"{budget:.0f} s for the whole diagnosis")
     ladder = model_ladder(physics, candidates, train, validation, ranker=ranker, initial_state=initial_state,
                           start_states=start_states, deadline=deadline)
     base = ladder.steps[0]
@@ -292,8 +311,10 @@ def diagnose(
     alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
     log.info("fitting the Chebyshev residual on top")
     with ThreadPoolExecutor(2) as pool:
-        hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha), _distinct(base, ladder.final)))
-    found = None if discovery is None else discovery.discover(ladder.rankings[-1], train, validation, deadline)
+        hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha, deadline),
+                                _distinct(base, ladder.final)))
+    found = None if discovery is None else discovery.discover(ladder.rankings[-1], train, validation, deadline,
+                                                              complete=hybrids[-1].adequacy.complete)
     first = channels[0]
     return Diagnosis(ladder, first.residuals, first.by_input, first.by_output, hybrids, validation, found, channels)
 
@@ -331,6 +352,11 @@ def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect
                                                  for c in candidates), default=0)
     for record in train + validation:
         check_channels(physics, record)
+        if len(record.t) <= 2 * most:
+            raise DataError(f"record {record.name!r} has {len(record.t)} samples, too few to fit up to {most} "
+                            f"parameters (the physics' and a candidate's) and judge the fit; give records of more "
+                            f"than {2 * most} samples, or fix parameters")
+        record.require_uniform("diagnose (its Chebyshev-Hammerstein residual, an exactly discretised filter)")
     check_outputs_vary(train + validation)
     check_scales_agree(train + validation)
     check_physics(physics, train[0].t, train[0].u)
@@ -338,9 +364,3 @@ def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect
         check_time_scale(physics, record)
     if discovery is not None:
         discovery.library.build(physics)  # a user term that does not parse is named before any fit
-    for record in train + validation:
-        if len(record.t) <= 2 * most:
-            raise DataError(f"record {record.name!r} has {len(record.t)} samples, too few to fit up to {most} "
-                            f"parameters (the physics' and a candidate's) and judge the fit; give records of more "
-                            f"than {2 * most} samples, or fix parameters")
-        record.require_uniform("diagnose (its Chebyshev-Hammerstein residual, an exactly discretised filter)")

@@ -47,11 +47,13 @@ from __future__ import annotations
 
 import functools
 import logging
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import torch
 
+from torchpaml._budget import Budget
 from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
 from torchpaml._diagnostics.closed_form_search import ClosedFormSearch, Regressed
@@ -64,7 +66,7 @@ from torchpaml._metrics import mismatch
 from torchpaml._physics.discovered import DiscoveredForce
 from torchpaml._physics.terms import TermLibrary, compile_term, variables_of
 
-__all__ = ["Discovery", "discover_missing_force"]
+__all__ = ["Discovery", "discover_missing_force", "library_best"]
 
 log = logging.getLogger(__name__)
 
@@ -76,19 +78,22 @@ class Discovery:
     ``effect`` is the refitted closed form (``None`` when nothing was kept); ``samples`` holds, along the
     first training record's neural trajectory, each variable, and the learned rate and the closed form's
     rate on the first equation, for :func:`~torchpaml.discovery_figure`. ``undecided`` names the forms whose fit
-    stopped over its budget (:mod:`torchpaml._budget`), and a search that the diagnosis' budget ended.
+    stopped over its budget (:mod:`torchpaml._budget`), a neural rate that stopped over its budget, and a search that
+    the diagnosis' budget ended. ``searched`` is false where nothing was searched (the physics was complete:
+    :meth:`~torchpaml.Discoverer.discover`); then the neural figures are ``None``.
     """
 
     physics: ModelScore
     library_best: EffectEvidence | None
-    neural_train: float
-    neural_validation: float
+    neural_train: float | None
+    neural_validation: float | None
     effect: DiscoveredForce | None
     discovered: ModelScore | None
     recommended: bool
     reason: str
     samples: dict[str, torch.Tensor] = field(repr=False)
     undecided: list[str] = field(default_factory=list)
+    searched: bool = True
 
     @property
     def expression(self) -> str | dict[str, str]:
@@ -128,9 +133,10 @@ def discover_missing_force(
         max_iter: L-BFGS iterations of the neural rate.
         max_nfev: iteration limit of the closed form's refit.
         seed: seed of the network's initial weights.
-        deadline: a ``time.perf_counter()`` time by which the search by refits ends (the diagnosis' ``budget``).
-            Each fit has its own budget too: :data:`~torchpaml._budget.REFIT_BUDGET` times its evaluation limit at
-            the cost of its first evaluations. A form stopped by either is named in ``Discovery.undecided``.
+        deadline: a ``time.perf_counter()`` time by which the search ends (the diagnosis' ``budget``), where the
+            ranking carries none (``Ranking.refit_limits``). Each fit has the limits of a refit on the ranking's rung
+            too (:mod:`torchpaml._budget`), a screen its share of them; a form stopped by either is named in
+            ``Discovery.undecided``, and so is a neural rate that stopped (the search goes on from where it stood).
     """
     train, validation = as_records(train), as_records(validation)
     library, regression = library or TermLibrary(), regression or SparseRegression()
@@ -138,34 +144,45 @@ def discover_missing_force(
     physics = baseline.model
     variables, equations = variables_of(physics)
     terms = library.build(physics)
-    log.info("discovery: training a neural rate on %s", physics.display_name)
+    end, template = math.inf if deadline is None else deadline, ranking.refit_limits or Budget("")
+    limits = Budget("", template.seconds, template.evaluations, min(template.deadline, end))
+    budget = limits.restarted(f"discovery: training a neural rate on {physics.display_name}")
+    log.info("discovery: training a neural rate on %s (at most %s)", physics.display_name, budget.describe())
     neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed,
-                              solver=baseline.solver)
+                              solver=baseline.solver, budget=budget)
+    stopped = [] if neural.stopped is None else [f"the neural rate: over budget ({neural.stopped:.1f} s)"]
     with torch.no_grad():
         neural_validation = mismatch(torch.cat([r.y for r in validation]),
                                      torch.cat([simulate_record(neural.model, r, x0, solver=neural.solver)[0]
                                                 for r, x0 in zip(validation, baseline.validation_states, strict=True)]))
     log.info("discovery: %d terms on %d equation(s) through the output", len(terms), len(equations))
     data = columns(neural, baseline, terms, equations, variables, train, ranking.initial_state.estimated)
+    log.info("discovery: sparse regression on %d terms", len(terms) * len(equations))
     regressed = Regressed.of(data, [(e, t) for e in equations for t in terms], regression)
-    library_best = next((e for e in ranking.entries if e.refit is not None and not e.unphysical), None)
+    best_effect = library_best(ranking)
     samples = {**data.samples, "closed_form": torch.zeros_like(data.samples["learned"])}
-    found = functools.partial(Discovery, baseline, library_best, neural.mismatch, neural_validation)
+    found = functools.partial(Discovery, baseline, best_effect, neural.mismatch, neural_validation)
     if not regressed.proposed:
         return found(None, None, False, "the sparse regression kept no term: nothing is missing that the physics "
-                     "cannot make", samples)
-    search = ClosedFormSearch(ranking, library_best, train, validation, data, regressed, max_nfev, deadline)
+                     "cannot make", samples, stopped)
+    search = ClosedFormSearch(ranking, best_effect, train, validation, data, regressed, max_nfev, limits)
     discovered, missing, reason = search.best(regression.max_terms)
-    if search.undecided:
-        reason += f"; undecided: {'; '.join(search.undecided)}"
+    undecided = stopped + search.undecided
+    if undecided:
+        reason += f"; undecided: {'; '.join(undecided)}"
     if discovered is None:
-        return found(None, None, False, reason, samples, search.undecided)
+        return found(None, None, False, reason, samples, undecided)
     effect = discovered.model.effects["discovered"]
     if missing is None:  # the closed form does not improve on the physics: nothing is missing
         return found(None, None, False, f"the best closed form, {effect.expression()}, does not improve on the "
-                     f"physics: {reason}", samples, search.undecided)
+                     f"physics: {reason}", samples, undecided)
     samples["closed_form"] = _closed_form_samples(effect, data.samples, variables, next(iter(equations)))
-    return found(effect, discovered, missing, reason, samples, search.undecided)
+    return found(effect, discovered, missing, reason, samples, undecided)
+
+
+def library_best(ranking: Ranking) -> EffectEvidence | None:
+    """The ranking's best refitted physical candidate: what a discovered form must beat to be recommended."""
+    return next((e for e in ranking.entries if e.refit is not None and not e.unphysical), None)
 
 
 def _closed_form_samples(effect: DiscoveredForce, samples: dict[str, torch.Tensor], variables: tuple[str, ...],

@@ -76,7 +76,7 @@ def model_ladder(
         ranking = ranker.rank(best.refit.model, [c for c in candidates if c.name in remaining], train, validation,
                               initial_state=initial_state,
                               start_states=best.refit.train_states if initial_state.estimated else None,
-                              deadline=deadline, solver=best.refit.solver)
+                              deadline=deadline, solver=best.refit.solver, refitted=best)
         steps.append(ranking.baseline)
         rankings.append(ranking)
     return Ladder(steps, added, rankings)

@@ -45,12 +45,11 @@ from __future__ import annotations
 import copy
 import logging
 import math
-import time
 from collections.abc import Sequence
 
 import torch
 
-from torchpaml._budget import REFIT_BUDGET, Budget
+from torchpaml._budget import REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, OverBudget
 from torchpaml._data import Record
 from torchpaml._metrics import sample_scales
 from torchpaml._diagnostics.first_order import Engines, by_promise, first_order
@@ -84,8 +83,10 @@ def rank_missing_effects(
     probe: float = 1e-4,
     max_nfev: int = 40,
     refit_budget: float = REFIT_BUDGET,
+    fit_budget: float = RUNG_FIT_BUDGET,
     deadline: float | None = None,
     solver: Solver | None = None,
+    refitted: EffectEvidence | None = None,
 ) -> Ranking:
     """Rank ``candidates`` as the effect missing from ``physics`` (module docstring).
 
@@ -106,31 +107,32 @@ def rank_missing_effects(
             states (default rest).
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
-        refit_budget: each refit may take this many times the rung's own fit in seconds, or this many times
-            ``max_nfev`` evaluations at the refit's own cost per evaluation, whichever is longer
-            (:mod:`torchpaml._budget`); one over it is reported undecided (``EffectEvidence.undecided``).
-        deadline: a ``time.perf_counter()`` time by which every refit must end (the diagnosis' ``budget``).
+        refit_budget: each refit may take this many times the rung's own fit in seconds (a linear rung's: its fit's
+            evaluations at the refit's own cost per evaluation; :mod:`torchpaml._budget`); one over it is reported
+            undecided (``EffectEvidence.undecided``).
+        fit_budget: after a refit (``refitted``), the fit of ``physics`` may take this many times that refit.
+        deadline: a ``time.perf_counter()`` time by which every fit must end (the diagnosis' ``budget``).
         solver: the solver ``physics`` was last fitted with (``PhysicsEstimate.solver``), where the step checks of
             its fits start (:func:`~torchpaml._simulate.solvers.continued`); default ``Auto()``.
+        refitted: the refit that ``physics`` comes from (a ladder's next rung): the fit of ``physics`` may take
+            ``fit_budget`` times that refit, and keeps the refit's parameters over it (``Ranking.fit_over_budget``).
+            Without it, the fit runs to the ``deadline``.
     """
     train, validation = as_records(train), as_records(validation)
     initial_state, rule = as_initial_state(initial_state), rule or SelectionRule()
     candidates, skipped = _applicable(physics, candidates)
-    base = copy.deepcopy(physics)
-    log.info("fitting %s on %d samples", base.display_name, sum(len(r.t) for r in train))
-    began = time.perf_counter()
-    fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states,
-                      solver=continued(solver))
-    seconds = time.perf_counter() - began
+    end = math.inf if deadline is None else deadline
+    base, fit, seconds, over = _rung_fit(physics, train, max_nfev, initial_state, start_states, solver, refitted,
+                                         fit_budget, end)
     baseline = score_model(base, fit, validation, rule, initial_state)
+    linear = base.state_space() is not None  # fitted on the exact path: its yardstick is its fit at a refit's cost
+    limits = Budget(base.display_name, refit_budget * seconds, refit_budget * fit.evaluations if linear else None, end)
     if not candidates:
-        return Ranking(baseline, [], rule, skipped, initial_state)
+        return Ranking(baseline, [], rule, skipped, initial_state, limits, over)
     log.info("scoring %d candidates to first order", len(candidates))
     entries, extended_models = _scored(base, candidates, train, fit, probe)
     by_score = sorted(entries, key=lambda e: -e.score)
-    refits = Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, max_nfev,
-                    Budget(base.display_name, refit_budget * seconds, refit_budget * max_nfev,
-                           math.inf if deadline is None else deadline))
+    refits = Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, max_nfev, limits)
     for rank, entry in enumerate(e for e in by_score if e.effect in extended_models):
         why_not = f"outside the shortlist of the {shortlist} best scores" if rank >= shortlist else \
             cannot_pass(entry.score, rule, validation, extended_models[entry.effect][0], base)
@@ -147,7 +149,32 @@ def rank_missing_effects(
         best.improvement = baseline.criterion - best.refit.criterion
         best.unphysical = unphysical_values(best.refit.rows())
     rest = [e for e in by_score if e.refit is None]
-    return Ranking(baseline, refitted + rest, rule, skipped, initial_state)
+    return Ranking(baseline, refitted + rest, rule, skipped, initial_state, limits, over)
+
+
+def _rung_fit(physics: AbstractPhysics, train: list[Record], max_nfev: int, initial_state: InitialState,
+              start_states: Sequence[torch.Tensor] | None, solver: Solver | None, refitted: EffectEvidence | None,
+              fit_budget: float, deadline: float) -> tuple[AbstractPhysics, PhysicsEstimate, float, float | None]:
+    """A copy of ``physics`` fitted on ``train`` as the rung's baseline, its fit, the rung's fit in seconds (with the
+    refit it comes from), and the seconds after which the fit stopped over its budget (``None`` where it ended).
+
+    After a refit (``refitted``) the fit may take ``fit_budget`` times it, and over that the rung keeps the refit's parameters and estimate; the first rung's fit has the diagnosis' deadline, and over it
+    the diagnosis cannot go on: a :class:`~torchpaml.ConfigurationError` says so."""
+    base = copy.deepcopy(physics)
+    label = f"fitting {base.display_name}"
+    log.info("%s on %d samples", label, sum(len(r.t) for r in train))
+    earlier = 0.0 if refitted is None else refitted.seconds
+    budget = Budget(label, None if refitted is None else fit_budget * earlier, deadline=deadline)
+    try:
+        fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states,
+                          solver=continued(solver), budget=budget)
+    except OverBudget as over:
+        if refitted is None:
+            raise ConfigurationError(f"{label} did not end within the diagnosis' budget ({over.seconds:.0f} s); give "
+                                     "it more seconds (--budget, diagnose(budget=)), or shorter records") from None
+        log.info("%s stopped over its budget (%.1f s): the rung keeps its refit's parameters", label, over.seconds)
+        return copy.deepcopy(physics), refitted.refit.estimate, earlier + over.seconds, over.seconds
+    return base, fit, earlier + budget.elapsed, None
 
 
 def placed(physics: AbstractPhysics, candidates: Sequence[AbstractEffect]) -> list[AbstractEffect]:

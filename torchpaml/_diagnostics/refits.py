@@ -169,7 +169,7 @@ def free_shape(entry: EffectEvidence, train: list[Record], validation: list[Reco
         return
     candidate = score_model(freed, estimate, validation, rule, initial_state)
     if score.criterion - candidate.criterion > rule.threshold:
-        entry.refit = candidate
+        entry.refit, entry.seconds = candidate, (entry.seconds or 0.0) + budget.elapsed  # the rung's fit made it too
 
 
 def cannot_pass(score: float, rule: SelectionRule, validation: list[Record], extended: AbstractPhysics,
@@ -218,10 +218,11 @@ class Refits:
         if budget.expired:
             entry.undecided, entry.refit_reason = 0.0, "undecided: the diagnosis' budget was spent before its refit"
             return
-        log.info("refitting %s + %s", self.name, entry.effect)
+        log.info("refitting %s + %s (at most %s)", self.name, entry.effect, budget.describe())
         try:
             refit = refit_effect(extended, strength, entry.first_order_strength, self.train, self.max_nfev,
                                  self.initial_state, self.fit, move, self.ftol, budget, bounds)
+            entry.seconds = budget.elapsed
         except OverBudget as over:
             entry.undecided, entry.refit_reason = over.seconds, f"undecided: over budget ({over.seconds:.1f} s)"
             log.info("%s + %s undecided: over budget (%.1f s)", self.name, entry.effect, over.seconds)

@@ -5,6 +5,7 @@ each channel weighted by $1/\mathrm{RMS}(y_c)$ (:func:`~torchpaml._metrics.chann
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -19,7 +20,12 @@ from torchpaml._fit.neural_force import NeuralForceFit
 from torchpaml._metrics import channel_weights
 from torchpaml._physics.terms import compile_term, input_values, state_columns, width_symbol
 
-__all__ = ["Columns", "columns", "width_range"]
+__all__ = ["Columns", "RESPONSE_BATCH", "columns", "width_range"]
+
+log = logging.getLogger(__name__)
+
+#: The terms' rates pass through the physics' tangent-linear response this many at a time, a progress line each.
+RESPONSE_BATCH = 64
 
 #: Relative central-difference step of the physics' own sensitivities.
 STEP = 1e-6
@@ -77,7 +83,14 @@ def columns(neural: NeuralForceFit, baseline: ModelScore, terms: list[str], equa
                 rates.append(rate)
         with torch.no_grad():
             learned = neural.model.learned(states, record.u)
-        responses = record_response(physics, record, x0, torch.stack([*rates, learned]), solver) * weights
+        forcing = [*rates, learned]
+        responses = []
+        for start in range(0, len(forcing), RESPONSE_BATCH):  # a progress line per batch: none runs for minutes
+            log.info("discovery: responses %d-%d of %d through the physics, record %r", start + 1,
+                     min(start + RESPONSE_BATCH, len(forcing)), len(forcing), record.name)
+            responses.append(record_response(physics, record, x0, torch.stack(forcing[start:start + RESPONSE_BATCH]),
+                                             solver))
+        responses = torch.cat(responses) * weights
         parts["responses"].append(responses[:-1].reshape(len(rates), -1).T)  # rows: samples, then channels
         parts["learned"].append(responses[-1].reshape(-1))
         y, J = record_jacobian(physics, names[:1], record, x0, initial_state=estimate, solver=solver) if estimate \

@@ -7,8 +7,10 @@ from dataclasses import dataclass, field
 
 import torch
 
+from torchpaml._budget import Budget
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._fit.initial_state import InitialState, Rest
+from torchpaml._fit.physics_fit import PhysicsEstimate
 from torchpaml._parameters import with_uncertainty
 from torchpaml._simulate.solvers import Auto, Solver
 
@@ -39,6 +41,8 @@ class ModelScore:
     validation_outputs: list[torch.Tensor] = field(default_factory=list, repr=False)
     solver: Solver = field(default_factory=Auto, repr=False)
     interval: dict[str, tuple[float, float]] = field(default_factory=dict, repr=False)
+    #: the fit scored (:class:`~torchpaml.PhysicsEstimate`): its residual and Jacobian start a ranking on this model
+    estimate: PhysicsEstimate | None = field(default=None, repr=False)
 
     def rows(self) -> list[dict]:
         """The model's parameter rows (:func:`~torchpaml._parameters.describe_parameters`) with the fit's standard
@@ -68,7 +72,8 @@ class EffectEvidence:
     simulation blows up: a lag driven towards 0 is a rate beyond what RK4 integrates), or why
     the candidate was not scored (its own states blow up at zero strength). ``refit_reason`` says why the
     candidate was or was not refitted; ``undecided`` is the seconds its refit ran before it stopped over its budget
-    (:mod:`torchpaml._budget`; 0 where the diagnosis' budget was spent before it started), else ``None``.
+    (:mod:`torchpaml._budget`; 0 where the diagnosis' budget was spent before it started), else ``None``;
+    ``seconds`` the time its refit took (``None`` where it was not refitted).
     """
 
     effect: str
@@ -82,6 +87,7 @@ class EffectEvidence:
     failure: str | None = None
     refit_reason: str = ""
     undecided: float | None = None
+    seconds: float | None = None
 
 
 @dataclass
@@ -94,6 +100,12 @@ class Ranking:
     rule: SelectionRule = field(default_factory=SelectionRule)
     skipped: dict[str, str] = field(default_factory=dict)
     initial_state: InitialState = field(default_factory=Rest)
+    #: the limits of a refit on this rung (:class:`~torchpaml.Budget`, restarted for each), which the discovery on it
+    #: takes too; ``None``: none
+    refit_limits: Budget | None = field(default=None, repr=False)
+    #: the seconds after which the rung's fit stopped over its budget, its model keeping the parameters of the refit
+    #: it comes from; ``None`` where it ended
+    fit_over_budget: float | None = None
 
     @property
     def recommended(self) -> EffectEvidence | None:

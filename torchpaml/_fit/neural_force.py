@@ -16,11 +16,13 @@ from ``seed``, so the fit is reproducible.
 from __future__ import annotations
 
 import copy
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
 
+from torchpaml._budget import Budget, OverBudget
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._data import Record
 from torchpaml._fit.output_error import minimize_output_error
@@ -33,6 +35,8 @@ from torchpaml._simulate.solvers import FixedStep, Solver, engine_solver
 
 __all__ = ["NeuralForceFit", "fit_neural_force"]
 
+log = logging.getLogger(__name__)
+
 
 @dataclass
 class NeuralForceFit:
@@ -43,6 +47,8 @@ class NeuralForceFit:
     mismatch: float
     iterations: int
     solver: FixedStep
+    #: the seconds after which the fit stopped over its budget, the network where the search stood; else ``None``
+    stopped: float | None = None
 
 
 def fit_neural_force(
@@ -55,6 +61,7 @@ def fit_neural_force(
     max_iter: int = 60,
     seed: int = 0,
     solver: Solver | None = None,
+    budget: Budget | None = None,
 ) -> NeuralForceFit:
     """Fit a neural rate on top of ``physics`` (not modified: a frozen copy is used) to ``records``.
 
@@ -68,6 +75,8 @@ def fit_neural_force(
         seed: seed of the network's initial weights.
         solver: the solver ``physics`` was fitted with (its fixed-step one integrates the network too,
             :func:`~torchpaml._simulate.solvers.engine_solver`).
+        budget: a :class:`~torchpaml.Budget`: progress lines, and over its limit the network stays where the search
+            stood (``NeuralForceFit.stopped``).
     """
     solver = engine_solver(solver)
     frozen = copy.deepcopy(physics)
@@ -91,5 +100,12 @@ def fit_neural_force(
                           for r, x0, w in zip(records, starts, warm, strict=True)])
 
     target = torch.cat([(r.y * weights).flatten() for r in records])
-    loss, iterations = minimize_output_error(predict, target, list(rate.parameters()), max_iter=max_iter)
+    try:
+        loss, iterations = minimize_output_error(predict, target, list(rate.parameters()), max_iter=max_iter,
+                                                 budget=budget)
+    except OverBudget as over:
+        log.info("%s; the discovery goes on from the network where it stood", over)
+        with torch.no_grad():
+            loss = float(torch.sum((target - predict()) ** 2) / torch.sum(target**2))
+        return NeuralForceFit(model, loss**0.5, max_iter, solver, over.seconds)
     return NeuralForceFit(model, loss**0.5, iterations, solver)

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable
 
 import torch
 
+from torchpaml._budget import Budget
 from torchpaml._errors import ConfigurationError
 
 __all__ = ["minimize_output_error"]
@@ -20,8 +23,12 @@ def minimize_output_error(
     max_iter: int = 100,
     lr: float = 1e-2,
     rtol: float | None = None,
+    budget: Budget | None = None,
 ) -> tuple[float, int]:
     r"""Minimise $\|y - \mathrm{predict}()\|^2 / \|y\|^2$ over ``parameters``; returns (final loss, iterations).
+
+    ``budget`` (a :class:`~torchpaml.Budget`) is told of every evaluation of the loss: it prints progress lines and
+    raises :class:`~torchpaml.OverBudget` past its limit, leaving ``parameters`` where the search stood.
 
     ``optimizer="lbfgs"``: ``torch.optim.LBFGS`` with a strong-Wolfe line search (for a handful of
     smooth physical or pole parameters). It stops when a step changes the loss by less than 1e-14 or, with
@@ -30,9 +37,16 @@ def minimize_output_error(
     goes on to its last digits). ``optimizer="adam"``: ``max_iter`` Adam steps (for networks).
     """
     scale = torch.sum(target.detach() ** 2)
+    lowest = math.inf
 
     def loss_fn():
-        return torch.sum((target - predict()) ** 2) / scale
+        nonlocal lowest
+        began = time.perf_counter()
+        loss = torch.sum((target - predict()) ** 2) / scale
+        if budget is not None:
+            lowest = min(lowest, float(loss.detach()))
+            budget.check(lowest, time.perf_counter() - began)
+        return loss
 
     if optimizer == "lbfgs":
         iterations, start = 0, None

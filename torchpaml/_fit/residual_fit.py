@@ -21,16 +21,20 @@ LTI simulation). Other residuals (the MLP baselines) are fitted by gradient desc
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import torch
 
+from torchpaml._budget import Budget, OverBudget
 from torchpaml._fit.output_error import minimize_output_error
 from torchpaml._metrics import mismatch
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
 
 __all__ = ["ResidualEstimate", "fit_chebyshev_hammerstein", "fit_residual", "project"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -84,9 +88,12 @@ def fit_chebyshev_hammerstein(
     *,
     max_iter: int = 100,
     rtol: float = CHANGE_TOLERANCE,
+    budget: Budget | None = None,
 ) -> ResidualEstimate:
     """Fit ``residual`` in place to ``target`` = y − ŷ, (batch, time, outputs), by variable projection; the pole search
-    stops when a step changes the squared mismatch by less than ``rtol`` of it (:data:`CHANGE_TOLERANCE`).
+    stops when a step changes the squared mismatch by less than ``rtol`` of it (:data:`CHANGE_TOLERANCE`), or over
+    ``budget`` (a :class:`~torchpaml.Budget`: progress lines, and its limit), with the best coefficients for the poles
+    it reached.
 
     Records of unequal length come as sequences, one ``t`` (time_i,), ``u`` (1, time_i, n_u) and ``target``
     (1, time_i, outputs) per record: each record's filter starts from rest, and one least squares takes every
@@ -105,7 +112,11 @@ def fit_chebyshev_hammerstein(
     def projected():
         return torch.stack([fitted for _, fitted in projections()], dim=-1)
 
-    _, iterations = minimize_output_error(projected, scaled, poles, max_iter=max_iter, rtol=rtol)
+    try:
+        _, iterations = minimize_output_error(projected, scaled, poles, max_iter=max_iter, rtol=rtol, budget=budget)
+    except OverBudget as over:  # the coefficients below are the best for the poles where the search stood
+        log.info("%s; the residual keeps the poles it reached", over)
+        iterations = max_iter
     with torch.no_grad():
         coefficients = [c for c, _ in projections()]
         residual.set_coefficients(coefficients[0] if residual.outputs == 1 else

@@ -238,14 +238,14 @@ def _channel_figures(diagnosis: Diagnosis) -> dict[str, Figure]:
 def diagnosis_figures(diagnosis: Diagnosis) -> dict[str, Figure]:
     """Name -> figure of a :class:`~torchpaml.Diagnosis`: ``compare``, ``residual_analysis``,
     ``error_by_amplitude`` (for each output channel, ``compare_y1``, ``compare_y2``, ..., where there are several),
-    ``ranking``, ``ladder``, and ``discovery`` when it ran."""
+    ``ranking``, ``ladder``, and ``discovery`` when it searched."""
     figures = {
         **_channel_figures(diagnosis),
         "ranking": ranking_figure(diagnosis.ranking),
         "ladder": ladder_figure(diagnosis.ladder,
                                 None if diagnosis.discovery is None else diagnosis.discovery.discovered),
     }
-    if diagnosis.discovery is not None:
+    if diagnosis.discovery is not None and diagnosis.discovery.searched:
         figures["discovery"] = discovery_figure(diagnosis.discovery)
     return figures
 

@@ -36,11 +36,13 @@ def evidence_to_dict(evidence: EffectEvidence) -> dict:
 
 def ladder_to_dicts(ladder: Ladder) -> list[dict]:
     """One dict per rung of the ladder (``solver``: the method the rung was fitted and scored with, ``"Exact"``,
-    ``"RK4"`` or ``"TRBDF2"``; ``substeps``: its steps per sample interval, 1 on the exact path)."""
+    ``"RK4"`` or ``"TRBDF2"``; ``substeps``: its steps per sample interval, 1 on the exact path; ``fit_over_budget``:
+    the seconds after which its fit stopped over its budget, the rung keeping its refit's parameters, else null)."""
     return [
         {"model": s.name, "equation": s.equation, "added": None if i == 0 else ladder.added[i - 1],
          "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
          "parameters": s.parameters, "uncertainty": _errors(s.uncertainty), "identifiability": s.warning,
+         "fit_over_budget": ladder.rankings[i].fit_over_budget if i < len(ladder.rankings) else None,
          **_solver(s.solver)}
         for i, s in enumerate(ladder.steps)
     ]
@@ -105,6 +107,7 @@ def discovery_to_dict(discovery: Discovery) -> dict:
         "uncertainty": _errors(final.uncertainty),
         "effect": None if discovery.effect is None else discovery.effect.to_config(),
         "undecided": discovery.undecided,
+        "searched": discovery.searched,
     }
 
 

@@ -21,7 +21,7 @@ from jsonargparse import ActionConfigFile, ArgumentError, ArgumentParser
 
 from torchpaml._errors import ConfigurationError
 from torchpaml._diagnostics.selection import SelectionRule
-from torchpaml._budget import REFIT_BUDGET
+from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET
 from torchpaml.cli.progress import progress_lines
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import EFFECTS, AbstractEffect
@@ -33,7 +33,7 @@ __all__ = ["check_options", "config_mistake", "diagnose_command", "diagnose_pars
 #: Repeatable flags, spelled ``--fix NAME=VALUE`` on the command line (jsonargparse appends with ``+``).
 REPEATED = {"--fix": "--fix+", "--effect": "--effects+", "--term": "--terms+"}
 #: Switches that may stand alone: ``--discover`` means ``--discover true``.
-SWITCHES = ("--discover", "--verbose", "--quiet")
+SWITCHES = ("--discover", "--discover_always", "--verbose", "--quiet")
 #: Options that take one file or several: ``--data a.csv b.csv`` is ``--data '["a.csv", "b.csv"]'``.
 RECORD_LISTS = ("--data", "--validation")
 #: The keys whose relative paths a config file gives from its own folder.
@@ -89,7 +89,7 @@ def check_options(shortlist: int, min_share: float, refit_budget: float = REFIT_
         raise ConfigurationError(f"--refit_budget is how many times its rung's fit a refit may take, > 0 (default "
                          f"{REFIT_BUDGET:g}); got {refit_budget}")
     if budget is not None and not budget > 0:
-        raise ConfigurationError(f"--budget is the seconds the diagnosis' refits may take, > 0; got {budget}")
+        raise ConfigurationError(f"--budget is the seconds the whole diagnosis may take, > 0; got {budget}")
 
 
 def diagnose_command(
@@ -107,9 +107,11 @@ def diagnose_command(
     initial_state: Literal["rest", "estimate"] = "rest",
     hold: Literal["foh", "zoh"] | None = None,
     discover: bool = False,
+    discover_always: bool = False,
     terms: list[str] | None = None,
     refit_budget: float = REFIT_BUDGET,
-    budget: float | None = None,
+    fit_budget: float = RUNG_FIT_BUDGET,
+    budget: float | None = DEFAULT_BUDGET,
     verbose: bool = False,
     quiet: bool = False,
 ) -> dict:
@@ -137,11 +139,18 @@ def diagnose_command(
             DAC plays a sampled signal); default the CSV metadata's ``"hold"``, else ``foh``.
         discover: also discover a force or rate outside the library on the ladder's last rung: a neural
             rate in the ODE, then its closed form (``discovery.json``, ``discovered_effect.yaml``; any physics).
+        discover_always: discover even where the ladder's last rung is complete at the noise level (by default the
+            discovery then says so and stops); implies ``discover``.
         terms: the discovery's own terms, sympy strings over the physics' variables (x, v, u for
             second-order physics, else its state names and u), e.g. ``x**2*sign(v)`` (repeat ``--term``).
-        refit_budget: each refit may take this many times its rung's own fit (in seconds, and in evaluations at the
-            refit's own cost); one over it stops and is reported undecided, and the ladder goes on.
-        budget: seconds for all the refits of the diagnosis, counted from its start (default: no limit).
+        refit_budget: each refit may take this many times its rung's own fit in seconds (a linear rung's: its
+            fit's evaluations at the refit's own cost); one over it stops and is reported undecided, and the ladder
+            goes on.
+        fit_budget: a rung's fit from the optimum of the refit that found its effect may take this many times that
+            refit; one over it stops, the rung keeps the refit's parameters, and the verdict says so.
+        budget: seconds for the whole diagnosis, counted from its start, printed in its first progress line
+            (default 600; ``null`` in a config: no limit): the fits then running stop, and those not started are not
+            run, each said in the verdict (:mod:`torchpaml._budget`).
         verbose: print the traceback of an error raised inside your physics (default: one line).
         quiet: no progress lines (by default each stage, the rung, the candidate refitted, the discovery's
             steps, is printed on stderr with the seconds since the start).
@@ -151,19 +160,26 @@ def diagnose_command(
     if Path(out).is_file():
         raise ConfigurationError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
     check_options(shortlist, min_share, refit_budget, budget)
-    model, chosen = resolve_models(physics, fix, effects, candidates, discover)
-    from torchpaml._diagnostics.discoverer import Discoverer
-    from torchpaml._diagnostics.ranker import Ranker
-    from torchpaml._physics.terms import TermLibrary
-
-    ranker = Ranker(rule=SelectionRule(criterion, threshold, min_share), shortlist=shortlist, refit_budget=refit_budget)
-    discovery = Discoverer(library=TermLibrary(terms=tuple(terms or ()))) if discover else None
+    model, chosen = resolve_models(physics, fix, effects, candidates, discover or discover_always)
+    ranker, discovery = _stages(SelectionRule(criterion, threshold, min_share), shortlist, refit_budget, fit_budget,
+                                terms, discover or discover_always, discover_always)
     diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold, ranker=ranker,
                                    initial_state=initial_state, discovery=discovery, budget=budget)
     path = Path(out) / "diagnosis.json"
     print(ranking_table(diagnosis.ranking))
     print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")
     return json.loads(path.read_text())
+
+
+def _stages(rule: SelectionRule, shortlist: int, refit_budget: float, fit_budget: float, terms: list[str] | None,
+            discover: bool, always: bool):
+    """The ranker and the discoverer (``None`` without ``discover``) of the command's options."""
+    from torchpaml._diagnostics.discoverer import Discoverer
+    from torchpaml._diagnostics.ranker import Ranker
+    from torchpaml._physics.terms import TermLibrary
+
+    ranker = Ranker(rule=rule, shortlist=shortlist, refit_budget=refit_budget, fit_budget=fit_budget)
+    return ranker, Discoverer(library=TermLibrary(terms=tuple(terms or ())), always=always) if discover else None
 
 
 def read_records(paths: str | Path | list, hold: str | None = None, physics: AbstractPhysics | None = None) -> list:

@@ -65,14 +65,15 @@ def finished(out: Path, unit: str) -> dict | None:
     return row if row.get("error") is None else None
 
 
-def diagnose_unit(folder: str, out: str, options: dict) -> dict:
+def diagnose_unit(folder: str, out: str, options: dict, threads: int = 1) -> dict:
     """Diagnose one unit (module docstring) with ``options``, the diagnose command's arguments as plain data
-    (physics by name or ``class_path``); returns its summary."""
+    (physics by name or ``class_path``), on ``threads`` threads of torch (the fleet gives each worker its share of
+    the cores); returns its summary."""
     import torch
 
     from torchpaml.cli.diagnose import diagnose_command, diagnose_parser
 
-    torch.set_num_threads(1)  # one unit per core
+    torch.set_num_threads(threads)
     unit, out = Path(folder).name, Path(out)
     staging, target = out / f".{unit}.partial", out / unit
     shutil.rmtree(staging, ignore_errors=True)
