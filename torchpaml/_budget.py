@@ -18,12 +18,12 @@ $$ \text{limit} = \min\big(\max(T,\; E\,t_1),\; t_{\text{deadline}} - t_{\text{s
 where $t_1$ is the costliest of the fit's first :data:`SCALE_EVALUATIONS` evaluations; until the first one ends, the
 deadline alone limits the fit.
 
-The ranking gives each refit $T = 10\,t_{\text{fit}}$, ten times its rung's own fit (:data:`REFIT_BUDGET`), and
-no count of evaluations. A rung's fit is all the fitting that made its model: the fit of the physics on the first
-rung; on the next ones, the refit that found the added effect and the fit that takes it to the last digits. A linear
-rung is fitted on the exact path, far cheaper than any refit on the nonlinear engine, so its yardstick is its fit
-redone at the refit's cost per evaluation: $E = 10\,n_{\text{fit}}$, ten times its fit's evaluations at the
-refit's own $t_1$. A rung's fit from its refit's optimum (which stopped at a criterion step of 0.1) needs a few
+The ranking gives each refit ten times its rung's own fit (:data:`REFIT_BUDGET`), in seconds and in evaluations:
+$T = 10\,t_{\text{fit}}$ and $E = 10\,n_{\text{fit}}$, its fit's evaluations redone at the refit's own cost $t_1$.
+A rung's fit is all the fitting that made its model: the fit of the physics on the first rung; on the next ones, the
+refit that found the added effect and the fit that takes it to the last digits. The evaluations count where the
+rung simulates on a cheaper path than the refit: a linear rung's exact path, against the nonlinear engine of any
+refit on it, or a refit whose model carries states of its own. A rung's fit from its refit's optimum (which stopped at a criterion step of 0.1) needs a few
 evaluations: it may take :data:`RUNG_FIT_BUDGET` times its refit, and one over it leaves the rung at its refit's
 parameters, and says so. The discovery's fits take the limits of the ladder's last rung.
 

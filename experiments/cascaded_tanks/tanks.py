@@ -11,8 +11,9 @@ with x1 the upper and x2 the lower level (in sensor volts). The effects:
   tank's equation and, for the upper tank, on the lower one, which that flow feeds;
 * :class:`UpperOverflow` (``upper_overflow``): above a level the upper tank spills; a share of the
   spill falls into the lower tank, the rest returns to the reservoir: *rates* on both equations;
-* :class:`SensorClip` (``sensor_clip``): the lower tank overflows and the measured level clips at
-  :data:`CLIP_LEVEL` = 10 V (the README counts the clipped samples): an *output map*.
+* :class:`SensorClip` (``sensor_clip``): the lower tank overflows and the measured level clips, at
+  :data:`CLIP_LEVEL` = 10 V by the README's count of the clipped samples (fitted, and probed where it acts): an
+  *output map*.
 """
 
 from __future__ import annotations
@@ -144,14 +145,26 @@ class UpperOverflow(AbstractEffect):
 
 
 class SensorClip(AbstractEffect):
-    r"""The measured level clips at 10 V: $y \to y - w\,\max(y - 10, 0)$; $w = 1$ is a hard clip."""
+    r"""The measured level clips at a level $L$: $y \to y - w\,\max(y - L, 0)$; $w = 1$ is a hard clip.
 
-    name, equation = "sensor_clip", "y -> y - w*max(y - 10, 0)"
+    $L$ starts at :data:`CLIP_LEVEL` (10 V, where the README counts the clipped samples) and is fitted with $w$.
+    The ranking probes it from levels inside the measured output's range too (:meth:`starts`: its 90th and 75th
+    percentiles), where the clip acts on the fitted output: at 10 V it acts only where the fitted level reaches 10 V,
+    which its fit may miss by a rounding, and a probe that moves no sample cannot judge it.
+    """
 
-    def __init__(self, w: float = 0.0, *, learn=("w",)):
+    name, equation = "sensor_clip", "y -> y - w*max(y - L, 0)"
+
+    def __init__(self, w: float = 0.0, level: float = CLIP_LEVEL, *, learn=("w", "level")):
         super().__init__()
-        register_parameters(self, [PhysicalParameter("w", w, "-", Interval(-0.5, 1.5), "share of the excess clipped",
-                                                     physical=(0.0, 1.0))], learn)
+        register_parameters(self, [
+            PhysicalParameter("w", w, "-", Interval(-0.5, 1.5), "share of the excess clipped", physical=(0.0, 1.0)),
+            PhysicalParameter("level", level, "V", Positive(), "clip level"),
+        ], learn)
+
+    def starts(self, records):
+        y = torch.cat([r.y.flatten() for r in records])
+        return [{}, *({"level": float(torch.quantile(y, q))} for q in (0.9, 0.75))]
 
     def output_map(self, y):
-        return y - self.w * (y - CLIP_LEVEL).clamp(min=0)
+        return y - self.w * (y - self.level).clamp(min=0)

@@ -69,7 +69,7 @@ def test_order_and_probe_invariance(duffing, effect, order, one_sided):
 def test_the_true_effect_explains_almost_all_of_a_small_residual(duffing):
     """Noise-free data and a weak effect: first order is nearly exact, so the score is near 1 and k1 near k3."""
     base, fit, reference = fitted(duffing[0])
-    score, _, strength, _ = first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(duffing[0].y.norm()),
+    score, _, strength, _, _ = first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(duffing[0].y.norm()),
                                          1e-4, reference, Secant(base, duffing[:1], fit.initial_states,
                                               engine_solver(fit.solver)))
     assert score > 0.97
@@ -84,7 +84,7 @@ def strong_cubic_first_order():
     base = Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=("zeta", "omega0", "gain"))
     fit = fit_physics(base, record)
     engine = TangentLinear.of(base, [record], fit.initial_states)
-    _, _, strength, move = first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(record.y.norm()),
+    _, _, strength, move, _ = first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(record.y.norm()),
                                         1e-4, engine.outputs(base) / float(record.y.norm()), engine)
     return base, record, fit, strength, move
 

@@ -146,7 +146,7 @@ def discover_missing_force(
     terms = library.build(physics)
     end, template = math.inf if deadline is None else deadline, ranking.refit_limits or Budget("")
     limits = Budget("", template.seconds, template.evaluations, min(template.deadline, end))
-    budget = limits.restarted(f"discovery: training a neural rate on {physics.display_name}")
+    budget = Budget(f"discovery: training a neural rate on {physics.display_name}", deadline=limits.deadline)
     log.info("discovery: training a neural rate on %s (at most %s)", physics.display_name, budget.describe())
     neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed,
                               solver=baseline.solver, budget=budget)

@@ -17,7 +17,14 @@ from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import AbstractEffect
 from torchpaml._simulate.solvers import engine_solver
 
-__all__ = ["NULL_DIRECTION", "Engines", "beyond_physics", "by_promise", "first_order", "physics_step", "share"]
+__all__ = ["ACTING", "MIN_ACTING_SHARE", "NULL_DIRECTION", "Engines", "acting_share", "beyond_physics", "by_promise",
+           "first_order", "physics_step", "share"]
+
+#: A sample's output moves under a probe where its change exceeds this share of the largest change.
+ACTING = 1e-9
+#: A candidate whose probe moves fewer than this share of the training samples is not judged by its first-order
+#: score (a clip whose level the fitted output barely reaches: whether it reaches it is a detail of rounding).
+MIN_ACTING_SHARE = 0.05
 
 #: A direction of the physics' unit-scaled Jacobian whose singular value is below this share of the largest is
 #: numerically null (:func:`_determined`).
@@ -88,9 +95,14 @@ def share(projected: torch.Tensor, energy: float, r: torch.Tensor) -> float:
 
 
 def first_order(extended: AbstractPhysics, name: str, fit: PhysicsEstimate, scale: torch.Tensor, probe: float,
-                 reference: torch.Tensor, engine: TangentLinear | Secant) -> tuple[float, int, float, torch.Tensor]:
-    r"""(score, order q, first-order strength, move) of the effect whose strength parameter is ``name``
+                 reference: torch.Tensor, engine: TangentLinear | Secant
+                 ) -> tuple[float, int, float, torch.Tensor, float]:
+    r"""(score, order q, first-order strength, move, acting share) of the effect whose strength parameter is ``name``
     (module docstring).
+
+    The acting share (:func:`acting_share`) is the share of the training samples whose output the probe moves: an
+    effect that acts on few of them at the fitted model (a clip whose level the output barely reaches) has a score
+    that a detail of rounding decides, and the ranking does not judge it by that score.
 
     The strength is probed at 0, δ, 2δ and -δ. An effect that moves the output the same way at ±δ
     (second order, or an absolute value such as the dead zone's |d|) can only add a positive multiple
@@ -119,18 +131,26 @@ def first_order(extended: AbstractPhysics, name: str, fit: PhysicsEstimate, scal
     J, r = fit.jacobian, fit.residual
     still = torch.zeros(J.shape[1], dtype=J.dtype)
     if size == 0.0:
-        return 0.0, 1, 0.0, still  # the effect does not act on this record
+        return 0.0, 1, 0.0, still, 0.0  # the effect does not act on this record
+    acting = acting_share(d1)
     order = 2 if float(torch.linalg.vector_norm(d2)) / size > 2**1.5 else 1
     one_sided = float(torch.linalg.vector_norm(d_minus - d1)) < 0.5 * size
     projected, energy = beyond_physics(d1, J)
     if energy <= 1e-20 * size**2:
-        return 0.0, order, 0.0, still  # the physics' own parameters already make this move
+        return 0.0, order, 0.0, still, acting  # the physics' own parameters already make this move
     beta = float(projected @ r) / energy
     if one_sided and beta <= 0:
-        return 0.0, order, probe, still
+        return 0.0, order, probe, still, acting
     score = share(projected, energy, r)
     move = physics_step(J, r - beta * d1)
-    return score, order, probe * (beta if order == 1 else beta ** (1 / order)), move
+    return score, order, probe * (beta if order == 1 else beta ** (1 / order)), move, acting
+
+
+def acting_share(d: torch.Tensor) -> float:
+    """The share of the samples of the output change ``d`` (samples,) that move by more than :data:`ACTING` of its
+    largest: where the effect acts (the simulations' rounding elsewhere lies far below)."""
+    largest = float(d.abs().max())
+    return 0.0 if largest == 0.0 else float((d.abs() > ACTING * largest).double().mean())
 
 
 def by_promise(base, candidate: AbstractEffect, train: list[Record], fit: PhysicsEstimate, delta: float,

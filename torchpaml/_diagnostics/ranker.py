@@ -31,8 +31,8 @@ class Ranker:
         shortlist: how many of the best-scored candidates are refitted.
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
-        refit_budget: each refit may take this many times its rung's fit (a linear rung's: its fit's evaluations at
-            the refit's own cost; :mod:`torchpaml._budget`).
+        refit_budget: each refit may take this many times its rung's fit, in seconds or in its fit's evaluations at
+            the refit's own cost, whichever is longer (:mod:`torchpaml._budget`).
         fit_budget: a rung's fit from the optimum of the refit that found its effect may take this many times that
             refit; over it, the rung keeps the refit's parameters (``Ranking.fit_over_budget``).
     """

@@ -52,7 +52,7 @@ import torch
 from torchpaml._budget import REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, OverBudget
 from torchpaml._data import Record
 from torchpaml._metrics import sample_scales
-from torchpaml._diagnostics.first_order import Engines, by_promise, first_order
+from torchpaml._diagnostics.first_order import MIN_ACTING_SHARE, Engines, by_promise, first_order
 from torchpaml._diagnostics.refits import Refits, cannot_pass, free_shape
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
 from torchpaml._diagnostics.scoring import as_records, score_model
@@ -107,8 +107,8 @@ def rank_missing_effects(
             states (default rest).
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
-        refit_budget: each refit may take this many times the rung's own fit in seconds (a linear rung's: its fit's
-            evaluations at the refit's own cost per evaluation; :mod:`torchpaml._budget`); one over it is reported
+        refit_budget: each refit may take this many times the rung's own fit, in seconds or in its fit's evaluations
+            at the refit's own cost, whichever is longer (:mod:`torchpaml._budget`); one over it is reported
             undecided (``EffectEvidence.undecided``).
         fit_budget: after a refit (``refitted``), the fit of ``physics`` may take this many times that refit.
         deadline: a ``time.perf_counter()`` time by which every fit must end (the diagnosis' ``budget``).
@@ -125,22 +125,16 @@ def rank_missing_effects(
     base, fit, seconds, over = _rung_fit(physics, train, max_nfev, initial_state, start_states, solver, refitted,
                                          fit_budget, end)
     baseline = score_model(base, fit, validation, rule, initial_state)
-    linear = base.state_space() is not None  # fitted on the exact path: its yardstick is its fit at a refit's cost
-    limits = Budget(base.display_name, refit_budget * seconds, refit_budget * fit.evaluations if linear else None, end)
+    # the rung's fit in seconds, or redone at a refit's own cost per evaluation (the exact path's is far cheaper)
+    limits = Budget(base.display_name, refit_budget * seconds, refit_budget * fit.evaluations, end)
     if not candidates:
         return Ranking(baseline, [], rule, skipped, initial_state, limits, over)
     log.info("scoring %d candidates to first order", len(candidates))
     entries, extended_models = _scored(base, candidates, train, fit, probe)
     by_score = sorted(entries, key=lambda e: -e.score)
     refits = Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, max_nfev, limits)
-    for rank, entry in enumerate(e for e in by_score if e.effect in extended_models):
-        why_not = f"outside the shortlist of the {shortlist} best scores" if rank >= shortlist else \
-            cannot_pass(entry.score, rule, validation, extended_models[entry.effect][0], base)
-        if why_not is not None:
-            entry.refit_reason = f"not refitted: {why_not}"
-            continue
-        entry.refit_reason = f"refitted: score rank {rank + 1} of the shortlist of {shortlist}, and it could pass the rule"
-        refits.run(entry, *extended_models[entry.effect])
+    _refit_shortlist([e for e in by_score if e.effect in extended_models], extended_models, shortlist, rule,
+                     validation, base, refits)
     refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
     if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
         best = refitted[0]
@@ -150,6 +144,26 @@ def rank_missing_effects(
         best.unphysical = unphysical_values(best.refit.rows())
     rest = [e for e in by_score if e.refit is None]
     return Ranking(baseline, refitted + rest, rule, skipped, initial_state, limits, over)
+
+
+def _refit_shortlist(scored: list[EffectEvidence], extended_models: dict[str, tuple], shortlist: int,
+                     rule: SelectionRule, validation: list[Record], base: AbstractPhysics, refits: Refits) -> None:
+    """Refit the ``shortlist`` best-scored candidates of ``scored`` that could pass ``rule`` (:func:`cannot_pass`),
+    and say in each entry why it was or was not refitted; a candidate whose probe moves fewer than
+    :data:`~torchpaml._diagnostics.first_order.MIN_ACTING_SHARE` of the samples is not judged by its score."""
+    for entry in (e for e in scored if e.acting < MIN_ACTING_SHARE):
+        entry.refit_reason = (f"not refitted: its first-order probe moves {100 * entry.acting:.2g} % of the training "
+                              "samples, too few for its score to judge it (whether the fitted output reaches where it "
+                              "acts is a detail of rounding); give it a start where it acts (AbstractEffect.starts: a "
+                              "level inside the signal's range)")
+    for rank, entry in enumerate(e for e in scored if e.acting >= MIN_ACTING_SHARE):
+        why_not = f"outside the shortlist of the {shortlist} best scores" if rank >= shortlist else \
+            cannot_pass(entry.score, rule, validation, extended_models[entry.effect][0], base)
+        if why_not is not None:
+            entry.refit_reason = f"not refitted: {why_not}"
+            continue
+        entry.refit_reason = f"refitted: score rank {rank + 1} of the shortlist of {shortlist}, and it could pass the rule"
+        refits.run(entry, *extended_models[entry.effect])
 
 
 def _rung_fit(physics: AbstractPhysics, train: list[Record], max_nfev: int, initial_state: InitialState,
@@ -227,8 +241,8 @@ def _scored(base: AbstractPhysics, candidates: list[AbstractEffect], train: list
             entries.append(EffectEvidence(candidate.name, candidate.equation, 0.0, 1, 0.0, failure=failure,
                                           refit_reason="not refitted: not scored"))
             continue
-        extended, (score, order, start, move) = best
-        entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start))
+        extended, (score, order, start, move, acting) = best
+        entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start, acting=acting))
         bounds = {f"{candidate.name}.{name}": limits for name, limits in candidate.bounds(train).items()
                   if f"{candidate.name}.{name}" in extended.learnable_names()}
         extended_models[candidate.name] = (extended, strength, move, bounds)

@@ -73,7 +73,8 @@ class EffectEvidence:
     the candidate was not scored (its own states blow up at zero strength). ``refit_reason`` says why the
     candidate was or was not refitted; ``undecided`` is the seconds its refit ran before it stopped over its budget
     (:mod:`torchpaml._budget`; 0 where the diagnosis' budget was spent before it started), else ``None``;
-    ``seconds`` the time its refit took (``None`` where it was not refitted).
+    ``seconds`` the time its refit took (``None`` where it was not refitted); ``acting`` the share of the training
+    samples whose output its first-order probe moves (:func:`~torchpaml._diagnostics.first_order.acting_share`).
     """
 
     effect: str
@@ -88,6 +89,7 @@ class EffectEvidence:
     refit_reason: str = ""
     undecided: float | None = None
     seconds: float | None = None
+    acting: float = 1.0
 
 
 @dataclass

@@ -121,7 +121,7 @@ def residual_analysis_figure(analysis: ResidualAnalysis) -> Figure:
     for ax, lags, values, bound, title in (
         (top, analysis.lags, analysis.autocorrelation, analysis.autocorrelation_bound, "autocorrelation of e"),
         (bottom, analysis.cross_lags, analysis.cross_correlation, analysis.cross_correlation_bound,
-         "cross-correlation of u and e"),
+         "cross-correlation of the prewhitened u and e"),
     ):
         ax.axhspan(-bound, bound, color="tab:blue", alpha=0.15, label=f"{100 * analysis.confidence:g} % bound")
         ax.stem(lags, values, basefmt=" ")

@@ -31,6 +31,7 @@ def evidence_to_dict(evidence: EffectEvidence) -> dict:
         "improvement": evidence.improvement, "parameters": {} if refit is None else refit.parameters,
         "uncertainty": {} if refit is None else _errors(refit.uncertainty), "unphysical": evidence.unphysical,
         "failure": evidence.failure, "refit_reason": evidence.refit_reason, "undecided": evidence.undecided,
+        "acting": evidence.acting,
     }
 
 

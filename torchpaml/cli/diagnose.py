@@ -143,8 +143,8 @@ def diagnose_command(
             discovery then says so and stops); implies ``discover``.
         terms: the discovery's own terms, sympy strings over the physics' variables (x, v, u for
             second-order physics, else its state names and u), e.g. ``x**2*sign(v)`` (repeat ``--term``).
-        refit_budget: each refit may take this many times its rung's own fit in seconds (a linear rung's: its
-            fit's evaluations at the refit's own cost); one over it stops and is reported undecided, and the ladder
+        refit_budget: each refit may take this many times its rung's own fit, in seconds or in its fit's evaluations
+            at the refit's own cost, whichever is longer; one over it stops and is reported undecided, and the ladder
             goes on.
         fit_budget: a rung's fit from the optimum of the refit that found its effect may take this many times that
             refit; one over it stops, the rung keeps the refit's parameters, and the verdict says so.
