@@ -59,6 +59,7 @@ bench: install-fleet
 	$(PYTHON) benchmarks/bench_fleet.py
 	$(PYTHON) benchmarks/bench_worst_case.py --lengths 4001 --out results/bench_worst_case.json
 	$(PYTHON) benchmarks/bench_worst_case.py --lengths 60001 --rungs "oscillator + coulomb_friction" --discovery-samples 0 --out results/bench_worst_case.json
+	$(PYTHON) benchmarks/bench_worst_case.py --lengths --discovery-samples 0 --cases memory_rung pendulum two_output --out results/bench_worst_case.json
 
 contrast: install
 	$(PYTHON) experiments/contrast/run.py --out results/contrast

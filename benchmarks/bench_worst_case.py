@@ -16,6 +16,16 @@ not hold (the pendulum with the hidden force, fitted by an oscillator), timed wi
 Reports, per length, the slowest refit against its rung's fit and the table of every refit; then the discovery's
 time and the terms it screened. One thread. ``--out`` collects runs: a run replaces the rows of the rungs and lengths
 it ran and keeps the others (``make tables`` renders the file on the benchmarks page).
+
+``--cases`` adds whole runs a user meets (``bounded`` in the file):
+
+* ``memory_rung``: the rung after an effect with memory under a sharp sign (an oscillator with LuGre friction,
+  sigma0 = 400, zc = 1e-3, 1 201 samples): the refit that finds it, the next rung's fit from its optimum within its
+  budget (twice the refit), and the same fit unbounded (``fit_budget`` infinite), the time it would take;
+* ``pendulum``: a pendulum with cubic damping (c = 0.3, 4 001 samples), ``diagnose`` with the discovery, whole;
+* ``two_output``: the two-mass chain of ``tests/two_mass.py`` (Coulomb friction on the second mass, both positions
+  measured, 12 001 samples), ``diagnose`` with the discovery, whole; and its discovery asked to go on
+  (``Discoverer(always=True)``) on the complete final model, the slowest path.
 """
 
 from __future__ import annotations
@@ -34,6 +44,11 @@ import torch
 from torchpaml import (
     CoulombFriction,
     CubicStiffness,
+    Discoverer,
+    DynamicFriction,
+    Ranker,
+    diagnose,
+    build_model,
     Oscillator,
     Pendulum,
     Simulated,
@@ -47,7 +62,9 @@ from torchpaml import (
 from torchpaml._diagnostics import refits as refits_module
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments" / "discovery"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from forces import CubicDamping  # noqa: E402  (F = -c v^3)
+from two_mass import FRICTION, TRUTH, TwoMass  # noqa: E402  (a user's physics with two outputs)
 
 
 def rungs() -> dict[str, torch.nn.Module]:
@@ -68,10 +85,16 @@ def rungs() -> dict[str, torch.nn.Module]:
 
 
 def records(system, samples: int):
-    truth = copy.deepcopy(system).set_learnable(*system.learnable_names(), learn=False) + CubicDamping(0.3)
+    """The rung's own system with the hidden cubic damping, measured (:func:`measured`)."""
+    return measured(copy.deepcopy(system).set_learnable(*system.learnable_names(), learn=False) + CubicDamping(0.3),
+                    samples)
+
+
+def measured(device, samples: int):
+    """Pseudorandom training and multisine validation records of ``device`` as it is, at 20 Hz with 2 % noise."""
     duration = (samples - 1) * 0.05
-    return (Simulated(truth, "pseudorandom", 1.0, [0], duration, 0.05, noise=0.02).experiments(),
-            Simulated(truth, "multisine", 1.0, [1], duration, 0.05, noise=0.02).experiments())
+    return (Simulated(device, "pseudorandom", 1.0, [0], duration, 0.05, noise=0.02).experiments(),
+            Simulated(device, "multisine", 1.0, [1], duration, 0.05, noise=0.02).experiments())
 
 
 class _RefitTimer:
@@ -153,11 +176,65 @@ def discovery_case(samples: int) -> dict:
             "discovery": found.text, "undecided": found.undecided}
 
 
+def memory_rung_case(samples: int = 1201) -> dict:
+    """The rung after LuGre friction under a sharp sign (module docstring): its refit, its fit within its budget, and
+    the same fit unbounded."""
+    device = build_model("oscillator", {"zeta": 0.2, "gain": 4.0}) + DynamicFriction(sigma0=400.0, zc=1e-3)
+    train, validation = measured(device, samples)
+    rows = {}
+    for label, ranker in (("bounded", Ranker()), ("unbounded", Ranker(fit_budget=math.inf))):
+        physics = build_model("oscillator").set_learnable("zeta", "omega0", "gain")
+        ladder = model_ladder(physics, [DynamicFriction()], train, validation, ranker=ranker)
+        refit, rung = ladder.rankings[0].recommended, ladder.rankings[1]
+        rows[label] = {"refit": refit.seconds, "rung_fit": rung.fit_seconds - refit.seconds,
+                       "stopped": rung.fit_over_budget is not None, "nrmse_validation": ladder.final.nrmse_validation}
+        print(f"  memory rung, {label}: refit {refit.seconds:.2f} s, the rung's fit {rows[label]['rung_fit']:.2f} s "
+              f"({'stopped over its budget' if rows[label]['stopped'] else 'ended'}), validation "
+              f"{100 * ladder.final.nrmse_validation:.2f} %", flush=True)
+    return {"samples": samples, **rows}
+
+
+def _diagnosis_seconds(name: str, physics, candidates, train, validation, discovery) -> dict:
+    """One whole ``diagnose``, timed, with what it found."""
+    began = time.perf_counter()
+    diagnosis = diagnose(physics, candidates, train, validation, discovery=discovery)
+    seconds = time.perf_counter() - began
+    found = diagnosis.discovery
+    row = {"seconds": seconds, "added": diagnosis.ladder.added, "nrmse_validation": diagnosis.ladder.final.nrmse_validation,
+           "discovery": None if found is None else found.text, "searched": None if found is None else found.searched}
+    print(f"  {name}: {seconds:.1f} s, added {row['added']}, validation {100 * row['nrmse_validation']:.2f} %, "
+          f"discovery {row['discovery']!r} (searched: {row['searched']})", flush=True)
+    return row
+
+
+def pendulum_case(samples: int = 4001) -> dict:
+    """A pendulum with cubic damping, ``diagnose`` with the discovery (module docstring)."""
+    truth = Pendulum(zeta=0.2, omega0=2.0, gain=2.0, learn=()) + CubicDamping(0.3)
+    train, validation = measured(truth, samples)
+    physics = Pendulum(learn=("zeta", "omega0", "gain"))
+    return {"samples": samples, **_diagnosis_seconds("pendulum with --discover", physics, default_effects(), train,
+                                                     validation, Discoverer())}
+
+
+def two_output_case(samples: int = 12001) -> dict:
+    """The two-mass chain, ``diagnose`` with the discovery; then the discovery asked to go on (module docstring)."""
+    device = TwoMass(**TRUTH, learn=()) + CoulombFriction(FRICTION).on("v2")
+    train, validation = measured(device, samples)
+    rows = {name: _diagnosis_seconds(f"two-mass chain, {name}", TwoMass(), default_effects(), train, validation,
+                                     Discoverer(always=always))
+            for name, always in (("discover", False), ("discover_always", True))}
+    return {"samples": samples, **rows}
+
+
+CASES = {"memory_rung": memory_rung_case, "pendulum": pendulum_case, "two_output": two_output_case}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--lengths", type=int, nargs="*", default=[4001, 60001], help="record lengths (none: the discovery alone)")
     parser.add_argument("--rungs", nargs="+", default=None, help="only the rungs whose name contains one of these")
     parser.add_argument("--discovery-samples", type=int, default=25001, help="the discovery case's length (0: none)")
+    parser.add_argument("--cases", nargs="*", default=[], choices=sorted(CASES), help="whole runs (module docstring)")
     parser.add_argument("--out", default="results/bench_worst_case.json")
     options = parser.parse_args()
     torch.set_num_threads(1)
@@ -187,6 +264,9 @@ def main() -> None:
               f"{slowest['ratio']:.1f} x its rung's fit ({slowest['outcome']})", flush=True)
     if options.discovery_samples:
         report["discovery"] = discovery_case(options.discovery_samples)
+    for case in options.cases:
+        print(case, flush=True)
+        report.setdefault("bounded", {})[case] = CASES[case]()
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(report, indent=1))
     print(f"wrote {options.out}")

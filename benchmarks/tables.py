@@ -116,7 +116,42 @@ def worst_case(report: dict) -> str:
         lines += ["", f"Discovery on {found['rung']} ({found['samples']:,} samples): {found['seconds']:.0f} s, "
                       f"{found['screened']} terms screened, `{found['discovery']}`; undecided: "
                       f"{'; '.join(found['undecided']) or 'none'}."]
+    bounded = report.get("bounded")
+    if bounded:
+        lines += ["", *_bounded(bounded)]
     return "\n".join(lines)
+
+
+def _whole(row: dict) -> str:
+    """A whole diagnosis of ``bench_worst_case.py --cases``: its seconds, what it added, the discovery."""
+    searched = "searched" if row["searched"] else "said the model complete and stopped"
+    return (f"{row['seconds']:.1f} s; added {', '.join(row['added']) or 'nothing'}, validation "
+            f"{100 * row['nrmse_validation']:.2f} %; the discovery {searched} (`{row['discovery']}`)")
+
+
+def _bounded(bounded: dict) -> list[str]:
+    """The whole runs of ``bench_worst_case.py --cases``, one row each."""
+    lines = ["| case | samples | what it took |", "|---|---|---|"]
+    memory = bounded.get("memory_rung")
+    if memory:
+        low, high = memory["bounded"], memory["unbounded"]
+        lines.append(f"| the rung after LuGre friction under a sharp sign | {memory['samples']:,} | its refit "
+                     f"{low['refit']:.2f} s; the rung's fit {low['rung_fit']:.2f} s "
+                     f"({'stopped at its budget, the refit' + chr(39) + 's parameters kept' if low['stopped'] else 'ended'}, "
+                     f"validation {100 * low['nrmse_validation']:.2f} %); unbounded it takes {high['rung_fit']:.1f} s "
+                     f"({_ratio(high['rung_fit'] / high['refit'])} its refit; validation "
+                     f"{100 * high['nrmse_validation']:.2f} %) |")
+    pendulum = bounded.get("pendulum")
+    if pendulum:
+        lines.append(f"| a pendulum with cubic damping, `diagnose` with the discovery | {pendulum['samples']:,} | "
+                     f"{_whole(pendulum)} |")
+    chain = bounded.get("two_output")
+    if chain:
+        lines.append(f"| the two-mass chain (two outputs), `diagnose` with the discovery | {chain['samples']:,} | "
+                     f"{_whole(chain['discover'])} |")
+        lines.append(f"| the same, the discovery asked to go on (`--discover_always`) | {chain['samples']:,} | "
+                     f"{_whole(chain['discover_always'])} |")
+    return lines
 
 
 #: The published figures the leaderboard sets ours beside, per benchmark: its headline test split, and the best

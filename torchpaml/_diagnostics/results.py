@@ -108,6 +108,9 @@ class Ranking:
     #: the seconds after which the rung's fit stopped over its budget, its model keeping the parameters of the refit
     #: it comes from; ``None`` where it ended
     fit_over_budget: float | None = None
+    #: the seconds of the rung's fit: of the physics on the first rung; on the next ones of the refit that found the
+    #: added effect and of the fit from its optimum (the yardstick of the refits on this rung)
+    fit_seconds: float | None = None
 
     @property
     def recommended(self) -> EffectEvidence | None:
