@@ -21,7 +21,7 @@ it ran and keeps the others (``make tables`` renders the file on the benchmarks 
 
 * ``memory_rung``: the rung after an effect with memory under a sharp sign (an oscillator with LuGre friction,
   sigma0 = 400, zc = 1e-3, 1 201 samples): the refit that finds it, the next rung's fit from its optimum within its
-  budget (twice the refit), and the same fit unbounded (``fit_budget`` infinite), the time it would take;
+  budget (ten times the refit), and the same fit unbounded (``fit_budget`` infinite), the time it would take;
 * ``pendulum``: a pendulum with cubic damping (c = 0.3, 4 001 samples), ``diagnose`` with the discovery, whole;
 * ``two_output``: the two-mass chain of ``tests/two_mass.py`` (Coulomb friction on the second mass, both positions
   measured, 12 001 samples), ``diagnose`` with the discovery, whole; and its discovery asked to go on

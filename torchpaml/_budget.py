@@ -23,9 +23,11 @@ $T = 10\,t_{\text{fit}}$ and $E = 10\,n_{\text{fit}}$, its fit's evaluations red
 A rung's fit is all the fitting that made its model: the fit of the physics on the first rung; on the next ones, the
 refit that found the added effect and the fit that takes it to the last digits. The evaluations count where the
 rung simulates on a cheaper path than the refit: a linear rung's exact path, against the nonlinear engine of any
-refit on it, or a refit whose model carries states of its own. A rung's fit from its refit's optimum (which stopped at a criterion step of 0.1) needs a few
-evaluations: it may take :data:`RUNG_FIT_BUDGET` times its refit, and one over it leaves the rung at its refit's
-parameters, and says so. The discovery's fits take the limits of the ladder's last rung.
+refit on it, or a refit whose model carries states of its own. A rung's fit from its refit's optimum (which stopped
+at a criterion step of 0.1) needs a few evaluations: it may take :data:`RUNG_FIT_BUDGET` times its refit, and one
+over it leaves the rung at its refit's parameters, and says so. The discovery's closed-form refits are several fits
+each (the form, its pruning, what remains): they may take ten times the last rung's fit, or ten fits of
+``max_nfev`` evaluations at their own cost, whichever is longer.
 
 The whole diagnosis has a deadline, :data:`DEFAULT_BUDGET` seconds by default, printed in its first line: a fit
 still running then stops, and those not started are not run (reported undecided). Being a time, a limit binds at a
@@ -50,8 +52,10 @@ log = logging.getLogger(__name__)
 PROGRESS_SECONDS = 5.0
 #: A ranking's refit may take this many times its rung's own fit (module docstring).
 REFIT_BUDGET = 10.0
-#: A rung's fit from the optimum of the refit that found its effect may take this many times that refit.
-RUNG_FIT_BUDGET = 2.0
+#: A rung's fit from the optimum of the refit that found its effect may take this many times that refit: it needs a
+#: few evaluations (2 to 5 times the refit on the cascaded tanks), and one that runs away takes 50 to 150 times it (a
+#: sharp LuGre friction's): the limit lies in the gap, far from both, so that no machine's speed moves a rung across it.
+RUNG_FIT_BUDGET = 10.0
 #: Seconds a whole diagnosis may take by default (``diagnose(budget=)``, ``--budget``): ten minutes.
 DEFAULT_BUDGET = 600.0
 #: $t_1$ is the costliest of a fit's first this many evaluations: the step check at a fit's start may raise the

@@ -121,7 +121,7 @@ def lugre_records(samples=1201):
 
 def test_a_rung_after_an_effect_with_memory_under_a_sharp_sign_ends_its_fit_within_its_budget_and_says_so(caplog):
     """From the refit's optimum (sigma0 4.7, zc 0.079) the rung's fit drifts towards the sharp truth, each evaluation
-    costlier: 141 evaluations and 164 s unbounded, against its refit's 1.1 s. It stops at twice its refit and the
+    costlier: 141 evaluations and 164 s unbounded, against its refit's 1.1 s. It stops at ten times its refit and the
     rung keeps the refit's parameters."""
     train, validation = lugre_records()
     physics = build_model("oscillator").set_learnable("zeta", "omega0", "gain")

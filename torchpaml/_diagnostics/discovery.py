@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from torchpaml._budget import Budget
+from torchpaml._budget import REFIT_BUDGET, Budget
 from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
 from torchpaml._diagnostics.closed_form_search import ClosedFormSearch, Regressed
@@ -134,9 +134,11 @@ def discover_missing_force(
         max_nfev: iteration limit of the closed form's refit.
         seed: seed of the network's initial weights.
         deadline: a ``time.perf_counter()`` time by which the search ends (the diagnosis' ``budget``), where the
-            ranking carries none (``Ranking.refit_limits``). Each fit has the limits of a refit on the ranking's rung
-            too (:mod:`torchpaml._budget`), a screen its share of them; a form stopped by either is named in
-            ``Discovery.undecided``, and so is a neural rate that stopped (the search goes on from where it stood).
+            ranking carries none (``Ranking.refit_limits``). Each closed form's refit may take ten times its rung's
+            fit in seconds, or ten fits of ``max_nfev`` evaluations at its own cost (it is several fits: the form,
+            its pruning, what remains), whichever is longer; a screen its share of that (:mod:`torchpaml._budget`).
+            A form stopped by either is named in ``Discovery.undecided``, and so is a neural rate that stopped (the
+            search goes on from where it stood).
     """
     train, validation = as_records(train), as_records(validation)
     library, regression = library or TermLibrary(), regression or SparseRegression()
@@ -145,7 +147,8 @@ def discover_missing_force(
     variables, equations = variables_of(physics)
     terms = library.build(physics)
     end, template = math.inf if deadline is None else deadline, ranking.refit_limits or Budget("")
-    limits = Budget("", template.seconds, template.evaluations, min(template.deadline, end))
+    # a closed form's refit is several fits (the form, its pruning, what remains), each up to max_nfev evaluations
+    limits = Budget("", template.seconds, REFIT_BUDGET * max_nfev, min(template.deadline, end))
     budget = Budget(f"discovery: training a neural rate on {physics.display_name}", deadline=limits.deadline)
     log.info("discovery: training a neural rate on %s (at most %s)", physics.display_name, budget.describe())
     neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed,
