@@ -182,7 +182,7 @@ def memory_rung_case(samples: int = 1201) -> dict:
     device = build_model("oscillator", {"zeta": 0.2, "gain": 4.0}) + DynamicFriction(sigma0=400.0, zc=1e-3)
     train, validation = measured(device, samples)
     rows = {}
-    for label, ranker in (("bounded", Ranker()), ("unbounded", Ranker(fit_budget=math.inf))):
+    for label, ranker in (("bounded", Ranker()), ("unbounded", Ranker(fit_budget=1e9))):
         physics = build_model("oscillator").set_learnable("zeta", "omega0", "gain")
         ladder = model_ladder(physics, [DynamicFriction()], train, validation, ranker=ranker)
         refit, rung = ladder.rankings[0].recommended, ladder.rankings[1]
@@ -200,7 +200,8 @@ def _diagnosis_seconds(name: str, physics, candidates, train, validation, discov
     diagnosis = diagnose(physics, candidates, train, validation, discovery=discovery)
     seconds = time.perf_counter() - began
     found = diagnosis.discovery
-    row = {"seconds": seconds, "added": diagnosis.ladder.added, "nrmse_validation": diagnosis.ladder.final.nrmse_validation,
+    row = {"seconds": seconds, "added": diagnosis.ladder.added,
+           "nrmse_validation": diagnosis.ladder.final.nrmse_validation,
            "discovery": None if found is None else found.text, "searched": None if found is None else found.searched}
     print(f"  {name}: {seconds:.1f} s, added {row['added']}, validation {100 * row['nrmse_validation']:.2f} %, "
           f"discovery {row['discovery']!r} (searched: {row['searched']})", flush=True)

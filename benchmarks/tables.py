@@ -122,6 +122,9 @@ def worst_case(report: dict) -> str:
     return "\n".join(lines)
 
 
+STOPPED = "stopped at its budget, the refit's parameters kept"
+
+
 def _whole(row: dict) -> str:
     """A whole diagnosis of ``bench_worst_case.py --cases``: its seconds, what it added, the discovery."""
     searched = "searched" if row["searched"] else "said the model complete and stopped"
@@ -137,7 +140,7 @@ def _bounded(bounded: dict) -> list[str]:
         low, high = memory["bounded"], memory["unbounded"]
         lines.append(f"| the rung after LuGre friction under a sharp sign | {memory['samples']:,} | its refit "
                      f"{low['refit']:.2f} s; the rung's fit {low['rung_fit']:.2f} s "
-                     f"({'stopped at its budget, the refit' + chr(39) + 's parameters kept' if low['stopped'] else 'ended'}, "
+                     f"({STOPPED if low['stopped'] else 'ended'}, "
                      f"validation {100 * low['nrmse_validation']:.2f} %); unbounded it takes {high['rung_fit']:.1f} s "
                      f"({_ratio(high['rung_fit'] / high['refit'])} its refit; validation "
                      f"{100 * high['nrmse_validation']:.2f} %) |")

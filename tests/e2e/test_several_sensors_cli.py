@@ -90,10 +90,12 @@ def diagnose_cli(folder, monkeypatch, capsys, *args):
 
 @pytest.mark.parametrize("args, words", [
     (["--data", "dead.csv"], ["output channel 'y2'", "is constant", "dead sensor"]),
-    (["--config", "misnamed.yaml"], ["degrees_of_freedom names state(s) ['vB']", "its states are ['x1', 'x2', 'v1', 'v2']"]),
+    (["--config", "misnamed.yaml"], ["degrees_of_freedom names state(s) ['vB']",
+                                     "its states are ['x1', 'x2', 'v1', 'v2']"]),
     (["--data", "ms_train.csv", "--validation", "ms_val.csv"], ["sampled every 50 s", "give t in seconds",
                                                               "milliseconds"]),
-    (["--data", "mm_train.csv"], ["output 'y2'", "times smaller", "another unit", "give every record's 'y2' in one unit"]),
+    (["--data", "mm_train.csv"], ["output 'y2'", "times smaller", "another unit",
+                                  "give every record's 'y2' in one unit"]),
     (["--data", "nan.csv"], ["column 'y2' has 1 NaN/inf value(s), first at row 7"]),
 ])
 def test_each_mistake_exits_2_in_at_most_three_lines_that_name_it(folder, monkeypatch, capsys, args, words):

@@ -69,7 +69,8 @@ def test_order_and_probe_invariance(duffing, effect, order, one_sided):
 def test_the_true_effect_explains_almost_all_of_a_small_residual(duffing):
     """Noise-free data and a weak effect: first order is nearly exact, so the score is near 1 and k1 near k3."""
     base, fit, reference = fitted(duffing[0])
-    score, _, strength, _, _ = first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit, float(duffing[0].y.norm()),
+    score, _, strength, _, _ = first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit,
+                                            float(duffing[0].y.norm()),
                                          1e-4, reference, Secant(base, duffing[:1], fit.initial_states,
                                               engine_solver(fit.solver)))
     assert score > 0.97

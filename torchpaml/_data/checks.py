@@ -7,7 +7,8 @@ r"""Records checked against each other before a fit: each output channel varies,
   next) is a factor of 100 or 1000 between records that the input does not show. For each record $r$ and output
   channel $c$ the ratio of its RMS to the first record's, divided by the same ratio of the first input,
 
-  $$ q_{rc} = \frac{\mathrm{RMS}(y^{(r)}_c) / \mathrm{RMS}(y^{(1)}_c)}{\mathrm{RMS}(u^{(r)}_1) / \mathrm{RMS}(u^{(1)}_1)}, $$
+  $$ q_{rc} = \frac{\mathrm{RMS}(y^{(r)}_c) / \mathrm{RMS}(y^{(1)}_c)}
+                {\mathrm{RMS}(u^{(r)}_1) / \mathrm{RMS}(u^{(1)}_1)}, $$
 
   must lie within $[1/Q, Q]$, $Q$ = :data:`SCALE_RATIO`: one device's records, even in other regimes, do not change
   their output's level against their input's by that factor, and a unit's slip does.
@@ -58,6 +59,7 @@ def check_scales_agree(records: Sequence[Record]) -> None:
         for c, q in enumerate(ratios.tolist()):
             if not 1 / SCALE_RATIO <= q <= SCALE_RATIO:
                 name, factor = record.output_names[c], max(q, 1 / q)
-                raise DataError(f"output {name!r} is {factor:.3g} times {'larger' if q > 1 else 'smaller'}, against the "
-                                f"input, in record {record.name!r} than in {first.name!r}: one of them is in another "
-                                f"unit (mm for m?); give every record's {name!r} in one unit")
+                larger = "larger" if q > 1 else "smaller"
+                raise DataError(f"output {name!r} is {factor:.3g} times {larger}, against the input, in record "
+                                f"{record.name!r} than in {first.name!r}: one of them is in another unit (mm for m?); "
+                                f"give every record's {name!r} in one unit")

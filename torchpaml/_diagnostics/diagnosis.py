@@ -16,8 +16,9 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    cross-correlation with the input below :data:`NOISE_CORRELATION` at all but :data:`WHITE_SHARE`
    of the lags, coloured or not, whatever the record's length, and the orthogonal residual unable to
    reduce it: :data:`~torchpaml._diagnostics.adequacy.NOISE_RATIO`) it says that the physics is
-   complete at that noise level. The two residual fits are independent and run in two threads (their
-   filtering, in scipy and torch, releases the GIL: 36 s -> 27 s at 100 000 samples, the same numbers);
+   complete at that noise level. The two residual fits are independent and run in two threads where torch has two
+   or more (their filtering, in scipy and torch, releases the GIL: 36 s -> 27 s at 100 000 samples, the same
+   numbers), in one where it has one (a fleet's worker, whose share of the cores is one);
 4. with ``discovery=Discoverer()``, the **discovery** of a force or rate outside the library on the ladder's
    last rung (:func:`~torchpaml.discover_missing_force`: a neural rate in the ODE, then its
    closed form, ranked against the library's best remaining effect), so that it can find a second
@@ -285,12 +286,12 @@ def diagnose(
             (:class:`~torchpaml.Discoverer`; ``Discoverer(library=TermLibrary(terms=["x**2*sign(v)"]))`` adds the
             user's own terms); default ``None``: no discovery.
         alpha: Chebyshev domain of the residual; default 1.05 max |u| over all records.
-        budget: seconds for the whole diagnosis, counted from the call (default :data:`~torchpaml._budget.DEFAULT_BUDGET`,
-            600 s; ``None``: no limit), printed in its first progress line: a refit still running then stops, and
-            those not started are not run, each reported undecided (``EffectEvidence.undecided``,
-            ``Discovery.undecided``, named in the verdict); a rung's fit keeps its refit's parameters
-            (``Ranking.fit_over_budget``); the residual's pole search keeps its poles. Within it, each refit has its
-            own limit (``Ranker.refit_budget``, :mod:`torchpaml._budget`).
+        budget: seconds for the whole diagnosis, counted from the call (default
+            :data:`~torchpaml._budget.DEFAULT_BUDGET`, 600 s; ``None``: no limit), printed in its first progress
+            line: a refit still running then stops, and those not started are not run, each reported undecided
+            (``EffectEvidence.undecided``, ``Discovery.undecided``, named in the verdict); a rung's fit keeps its
+            refit's parameters (``Ranking.fit_over_budget``); the residual's pole search keeps its poles. Within it,
+            each refit has its own limit (``Ranker.refit_budget``, :mod:`torchpaml._budget`).
         legacy: the keywords of the earlier signature, still taken with a ``DeprecationWarning``: ``discover`` and
             ``terms`` (now ``discovery=Discoverer(...)``), and ``rule``, ``shortlist``, ``probe``, ``max_nfev`` and
             ``refit_budget`` (now ``ranker=Ranker(...)``).
@@ -310,7 +311,7 @@ def diagnose(
     channels = channel_scores(base, ladder.final, validation)
     alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
     log.info("fitting the Chebyshev residual on top")
-    with ThreadPoolExecutor(2) as pool:
+    with ThreadPoolExecutor(min(2, torch.get_num_threads())) as pool:  # one where torch has one (a fleet's worker)
         hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha, deadline),
                                 _distinct(base, ladder.final)))
     found = None if discovery is None else discovery.discover(ladder.rankings[-1], train, validation, deadline,

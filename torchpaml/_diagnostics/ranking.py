@@ -162,7 +162,8 @@ def _refit_shortlist(scored: list[EffectEvidence], extended_models: dict[str, tu
         if why_not is not None:
             entry.refit_reason = f"not refitted: {why_not}"
             continue
-        entry.refit_reason = f"refitted: score rank {rank + 1} of the shortlist of {shortlist}, and it could pass the rule"
+        entry.refit_reason = (f"refitted: score rank {rank + 1} of the shortlist of {shortlist}, and it could pass "
+                              "the rule")
         refits.run(entry, *extended_models[entry.effect])
 
 
@@ -172,8 +173,9 @@ def _rung_fit(physics: AbstractPhysics, train: list[Record], max_nfev: int, init
     """A copy of ``physics`` fitted on ``train`` as the rung's baseline, its fit, the rung's fit in seconds (with the
     refit it comes from), and the seconds after which the fit stopped over its budget (``None`` where it ended).
 
-    After a refit (``refitted``) the fit may take ``fit_budget`` times it, and over that the rung keeps the refit's parameters and estimate; the first rung's fit has the diagnosis' deadline, and over it
-    the diagnosis cannot go on: a :class:`~torchpaml.ConfigurationError` says so."""
+    After a refit (``refitted``) the fit may take ``fit_budget`` times it, and over that the rung keeps the refit's
+    parameters and estimate; the first rung's fit has the diagnosis' deadline, and over it the diagnosis cannot go
+    on: a :class:`~torchpaml.ConfigurationError` says so."""
     base = copy.deepcopy(physics)
     label = f"fitting {base.display_name}"
     log.info("%s on %d samples", label, sum(len(r.t) for r in train))

@@ -75,9 +75,9 @@ def check_degrees_of_freedom(physics: AbstractPhysics) -> None:
     for pair in base.degrees_of_freedom:
         unknown = [name for name in pair if name not in base.state_names]
         if unknown:
-            raise ConfigurationError(f"{base.display_name}.degrees_of_freedom names state(s) {unknown} in {tuple(pair)}, "
-                                     f"but its states are {list(base.state_names)}; name a (position, velocity) pair "
-                                     "of state_names")
+            raise ConfigurationError(f"{base.display_name}.degrees_of_freedom names state(s) {unknown} in "
+                                     f"{tuple(pair)}, but its states are {list(base.state_names)}; name a (position, "
+                                     "velocity) pair of state_names")
 
 
 def check_time_scale(physics: AbstractPhysics, record) -> None:
@@ -90,12 +90,13 @@ def check_time_scale(physics: AbstractPhysics, record) -> None:
     try:
         A = torch.autograd.functional.jacobian(lambda x: physics.derivative(record.t[:1], x, record.u[:1]), x0)
         omega = float(torch.linalg.eigvals(A.reshape(x0.shape[1], x0.shape[1])).imag.abs().max())
-    except (RuntimeError, TypeError):  # not differentiable by autograd: the fit reports what goes wrong
+    except (RuntimeError, TypeError, ValueError, NotImplementedError):  # not differentiable: its fit says more
         return
     if omega * dt > TIME_SCALE_LIMIT:
-        raise DataError(f"record {record.name!r} is sampled every {dt:.6g} s, but {physics.display_name} at its starting "
-                        f"parameters oscillates at {omega:.3g} rad/s, {omega * dt / (2 * math.pi):.3g} periods per "
-                        "sample: give t in seconds (a time in milliseconds is divided by 1000), or start the physics' "
+        periods = omega * dt / (2 * math.pi)
+        raise DataError(f"record {record.name!r} is sampled every {dt:.6g} s, but {physics.display_name} at its "
+                        f"starting parameters oscillates at {omega:.3g} rad/s, {periods:.3g} periods per sample: "
+                        "give t in seconds (a time in milliseconds is divided by 1000), or start the physics' "
                         "parameters nearer the device's")
 
 
