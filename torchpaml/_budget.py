@@ -26,8 +26,7 @@ rung simulates on a cheaper path than the refit: a linear rung's exact path, aga
 refit on it, or a refit whose model carries states of its own. A rung's fit from its refit's optimum (which stopped
 at a criterion step of 0.1) needs a few evaluations: it may take :data:`RUNG_FIT_BUDGET` times its refit, and one
 over it leaves the rung at its refit's parameters, and says so. The discovery's closed-form refits are several fits
-each (the form, its pruning, what remains): they may take ten times the last rung's fit, or ten fits of
-``max_nfev`` evaluations at their own cost, whichever is longer.
+each (the form, its pruning, what remains): they may take ten fits of ``max_nfev`` evaluations at their own cost.
 
 The whole diagnosis has a deadline, :data:`DEFAULT_BUDGET` seconds by default, printed in its first line: a fit
 still running then stops, and those not started are not run (reported undecided). Being a time, a limit binds at a
