@@ -160,7 +160,7 @@ def discovery_case(samples: int) -> dict:
     train, validation = records(Pendulum(zeta=0.2, omega0=2.0, gain=2.0, learn=()), samples)
     start = Pendulum(zeta=0.4, omega0=1.6, gain=1.5, learn=("zeta", "omega0", "gain"))
     ladder = model_ladder(start, default_effects(), train, validation)
-    screens, logger = _Screens(), logging.getLogger("torchpaml._diagnostics.discovery")
+    screens, logger = _Screens(), logging.getLogger("torchpaml")  # the search logs from closed_form_search
     logger.addHandler(screens)
     level, logger.level = logger.level, logging.INFO
     began = time.perf_counter()
