@@ -28,6 +28,7 @@ returns the solver it resolved (``PhysicsEstimate.solver``). It writes the fitte
 
 from __future__ import annotations
 
+import contextlib
 import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -158,11 +159,12 @@ def fit_physics(
     problem.evaluate(x)  # raises SimulationError, naming the blow-up, at a bad start
     step_check = _StepCheck(problem, switch)
     result = None
-    while (resolved := step_check.solver(x, result is not None)) != problem.solver or result is None:
-        problem.use(resolved)  # at the start, then at each optimum
-        result = least_squares(problem.residual, x, jac=lambda x: problem.evaluate(x)[1], bounds=(lower, upper),
-                               method="trf", x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
-        x = result.x
+    with budget.active() if budget is not None else contextlib.nullcontext():  # the step check's simulations too
+        while (resolved := step_check.solver(x, result is not None)) != problem.solver or result is None:
+            problem.use(resolved)  # at the start, then at each optimum
+            result = least_squares(problem.residual, x, jac=lambda x: problem.evaluate(x)[1], bounds=(lower, upper),
+                                   method="trf", x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
+            x = result.x
     return _estimate(problem, result.x)
 
 
