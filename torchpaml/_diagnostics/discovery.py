@@ -133,12 +133,11 @@ def discover_missing_force(
         max_iter: L-BFGS iterations of the neural rate.
         max_nfev: iteration limit of the closed form's refit.
         seed: seed of the network's initial weights.
-        deadline: a ``time.perf_counter()`` time by which the search ends (the diagnosis' ``budget``), where the
-            ranking carries none (``Ranking.refit_limits``). Each closed form's refit may take ten fits of
-            ``max_nfev`` evaluations at its own cost (it is several fits: the form, its pruning, what remains), a
-            screen its share of that (:mod:`torchpaml._budget`).
-            A form stopped by either is named in ``Discovery.undecided``, and so is a neural rate that stopped (the
-            search goes on from where it stood).
+        deadline: a ``time.perf_counter()`` time by which the search ends (the diagnosis' ``budget``). Each closed
+            form's refit may take ten fits of ``max_nfev`` evaluations at its own cost (it is several fits: the form,
+            its pruning, what remains), a screen its share of that (:mod:`torchpaml._budget`). A form stopped by
+            either is named in ``Discovery.undecided``, and so is a neural rate that stopped (the search goes on from
+            where it stood).
     """
     train, validation = as_records(train), as_records(validation)
     library, regression = library or TermLibrary(), regression or SparseRegression()
@@ -146,9 +145,8 @@ def discover_missing_force(
     physics = baseline.model
     variables, equations = variables_of(physics)
     terms = library.build(physics)
-    end, template = math.inf if deadline is None else deadline, ranking.refit_limits or Budget("")
     # a closed form's refit is several fits (the form, its pruning, what remains), each up to max_nfev evaluations
-    limits = Budget("", None, REFIT_BUDGET * max_nfev, min(template.deadline, end))
+    limits = Budget("", evaluations=REFIT_BUDGET * max_nfev, deadline=math.inf if deadline is None else deadline)
     budget = Budget(f"discovery: training a neural rate on {physics.display_name}", deadline=limits.deadline)
     log.info("discovery: training a neural rate on %s (at most %s)", physics.display_name, budget.describe())
     neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed,

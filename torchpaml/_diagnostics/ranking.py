@@ -128,7 +128,7 @@ def rank_missing_effects(
     # the rung's fit in seconds, or redone at a refit's own cost per evaluation (the exact path's is far cheaper)
     limits = Budget(base.display_name, refit_budget * seconds, refit_budget * fit.evaluations, end)
     if not candidates:
-        return Ranking(baseline, [], rule, skipped, initial_state, limits, over, seconds)
+        return Ranking(baseline, [], rule, skipped, initial_state, over, seconds)
     log.info("scoring %d candidates to first order", len(candidates))
     entries, extended_models = _scored(base, candidates, train, fit, probe)
     by_score = sorted(entries, key=lambda e: -e.score)
@@ -143,7 +143,7 @@ def rank_missing_effects(
         best.improvement = baseline.criterion - best.refit.criterion
         best.unphysical = unphysical_values(best.refit.rows())
     rest = [e for e in by_score if e.refit is None]
-    return Ranking(baseline, refitted + rest, rule, skipped, initial_state, limits, over, seconds)
+    return Ranking(baseline, refitted + rest, rule, skipped, initial_state, over, seconds)
 
 
 def _refit_shortlist(scored: list[EffectEvidence], extended_models: dict[str, tuple], shortlist: int,

@@ -7,7 +7,6 @@ from dataclasses import dataclass, field
 
 import torch
 
-from torchpaml._budget import Budget
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._fit.initial_state import InitialState, Rest
 from torchpaml._fit.physics_fit import PhysicsEstimate
@@ -102,9 +101,6 @@ class Ranking:
     rule: SelectionRule = field(default_factory=SelectionRule)
     skipped: dict[str, str] = field(default_factory=dict)
     initial_state: InitialState = field(default_factory=Rest)
-    #: the limits of a refit on this rung (:class:`~torchpaml.Budget`, restarted for each), which the discovery on it
-    #: takes too; ``None``: none
-    refit_limits: Budget | None = field(default=None, repr=False)
     #: the seconds after which the rung's fit stopped over its budget, its model keeping the parameters of the refit
     #: it comes from; ``None`` where it ended
     fit_over_budget: float | None = None
