@@ -209,9 +209,13 @@ def test_a_warm_start_converges_to_the_same_solution(drive):
 
 
 class _UserDuffing(torch.nn.Module):
-    """``_duffing()`` as a user would write it: no linear base, and a derivative stacked row-major."""
+    """``_duffing()`` as a user would write it against the solvers' protocol (:class:`Dynamics`): no linear base,
+    and a derivative stacked row-major."""
 
     state_dim, state_names = 2, ("position", "velocity")
+
+    def linear_base(self):
+        return None
 
     def derivative(self, t, x, u):
         pos, vel = x[:, 0], x[:, 1]

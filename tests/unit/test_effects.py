@@ -96,8 +96,10 @@ def test_composition_flattens_names_parameters_and_rejects_clashes():
     assert "- k3*x^3" in model.describe()
     with pytest.raises(ValueError, match=r"effect\(s\) \['cubic_stiffness'\] added twice"):
         model + CubicStiffness()
-    with pytest.raises(TypeError, match="can only add an AbstractEffect"):
+    with pytest.raises(TypeError, match="unsupported operand"):
         Oscillator() + 3.0
+    with pytest.raises(TypeError, match=r"an effect is added to physics \(physics \+ effect\)"):
+        CubicStiffness() + QuadraticDamping()
 
 
 def test_forces_need_a_degree_of_freedom():

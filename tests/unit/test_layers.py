@@ -1,4 +1,5 @@
-"""The layers import downwards only: the package-level import graph of torchpaml has no circle."""
+"""The layers import downwards only: every import of torchpaml's modules, nested and ``TYPE_CHECKING`` ones
+included, forms no circle, between modules or between layers."""
 
 import ast
 from pathlib import Path
@@ -6,33 +7,40 @@ from pathlib import Path
 import torchpaml
 
 ROOT = Path(torchpaml.__file__).parent
+#: The layers from the bottom up: a layer imports only layers before it (the top-level helpers are their own).
+ORDER = ["_errors", "_grid", "_signals", "_parameters", "_budget", "_simulate", "_physics", "_metrics", "_data",
+         "_residual", "_fit", "_certificates", "_diagnostics", "_render", "_paper", "_training", "cli"]
 
 
-def _layer(module: str) -> str:
-    """``torchpaml._simulate.solvers`` -> ``_simulate``; a top-level module is its own layer."""
-    return module.split(".")[1]
+def _module(path: Path) -> str:
+    parts = list(path.relative_to(ROOT.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {_module(path): path for path in ROOT.rglob("*.py")}
 
 
 def _imports(path: Path) -> set[str]:
-    """The torchpaml modules ``path`` imports when it is imported: module level, outside ``if TYPE_CHECKING``."""
+    """Every torchpaml module ``path`` imports, anywhere in it (module level, in functions, under ``if``)."""
     found = set()
-    for node in ast.parse(path.read_text()).body:
-        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("torchpaml."):
-            found.add(node.module)
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("torchpaml"):
+            found |= {f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in MODULES else node.module
+                      for a in node.names}
         elif isinstance(node, ast.Import):
-            found |= {a.name for a in node.names if a.name.startswith("torchpaml.")}
-    return found
+            found |= {a.name for a in node.names if a.name.startswith("torchpaml")}
+    return found & set(MODULES)
 
 
-def _graph() -> dict[str, set[str]]:
-    graph: dict[str, set[str]] = {}
-    for path in ROOT.rglob("*.py"):
-        parts = path.relative_to(ROOT.parent).with_suffix("").parts
-        if len(parts) < 2 or parts[1] in ("__init__", "__main__"):
-            continue
-        layer = parts[1]
-        graph.setdefault(layer, set()).update(_layer(m) for m in _imports(path) if _layer(m) != layer)
-    return graph
+def _layer(module: str) -> str:
+    """``torchpaml._simulate.solvers`` -> ``_simulate``; ``torchpaml`` itself is the top."""
+    return module.split(".")[1] if "." in module else "torchpaml"
+
+
+def _graph(packages: bool) -> dict[str, set[str]]:
+    """Module -> the modules it imports; a package's ``__init__`` (which re-exports) only with ``packages``."""
+    skip = {m for m, path in MODULES.items() if path.name == "__init__.py" and not packages}
+    return {m: _imports(path) - skip - {m} for m, path in MODULES.items() if m not in skip}
 
 
 def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
@@ -57,14 +65,29 @@ def _cycle(graph: dict[str, set[str]]) -> list[str] | None:
     return None
 
 
-def test_the_layers_import_each_other_without_a_circle():
-    graph = _graph()
-    assert {"_physics", "_simulate", "_data", "_fit", "_diagnostics", "_render"} <= set(graph)
-    assert _cycle(graph) is None, " -> ".join(_cycle(graph))
+def test_the_modules_import_each_other_without_a_circle():
+    cycle = _cycle(_graph(packages=False))
+    assert cycle is None, " -> ".join(cycle)
 
 
-def test_the_simulator_sees_tensors_and_physics_only():
-    assert not {"_data", "_fit", "_diagnostics", "_render", "_training", "cli"} & _graph()["_simulate"]
+def test_every_layer_imports_only_the_layers_below_it():
+    assert {_layer(m) for m in MODULES} - {"torchpaml", "__main__"} <= set(ORDER), "a new layer needs its place"
+    upward = sorted(f"{m} imports {i}" for m, imported in _graph(packages=True).items() for i in imported
+                    if _layer(m) in ORDER and _layer(i) in ORDER and ORDER.index(_layer(i)) > ORDER.index(_layer(m)))
+    assert upward == []
+
+
+def test_the_layer_test_sees_nested_and_type_checking_imports(tmp_path):
+    source = tmp_path / "probe.py"
+    source.write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from torchpaml._fit import fit_physics\n"
+                      "def f():\n    from torchpaml._simulate.solvers import RK4\n")
+    assert _imports(source) == {"torchpaml._fit", "torchpaml._simulate.solvers"}
+
+
+def test_the_simulator_sees_tensors_only():
+    below = set(ORDER[: ORDER.index("_simulate")])
+    assert {_layer(i) for m, imported in _graph(packages=True).items() if _layer(m) == "_simulate"
+            for i in imported} - {"_simulate"} <= below
 
 
 def test_no_function_is_longer_than_80_lines():

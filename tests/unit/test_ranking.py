@@ -26,7 +26,6 @@ from torchpaml._data import Simulated
 from torchpaml._diagnostics.probes import Secant, TangentLinear
 from torchpaml._diagnostics.first_order import first_order
 from torchpaml._diagnostics.refits import REFIT_CRITERION_STEP, refit_effect
-from torchpaml._simulate.solvers import engine_solver
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +58,7 @@ def test_order_and_probe_invariance(duffing, effect, order, one_sided):
     for probe in (1e-4, 1e-3):
         score, found, *_ = first_order(base + effect, name, fit, float(duffing[0].y.norm()), probe, reference,
                                        Secant(base, duffing[:1], fit.initial_states,
-                                              engine_solver(fit.solver)))
+                                              fit.solver))
         assert found == order
         scores.append(score)
     assert scores[0] == pytest.approx(scores[1], abs=1e-3)
@@ -72,7 +71,7 @@ def test_the_true_effect_explains_almost_all_of_a_small_residual(duffing):
     score, _, strength, _, _ = first_order(base + CubicStiffness(), "cubic_stiffness.k3", fit,
                                             float(duffing[0].y.norm()),
                                          1e-4, reference, Secant(base, duffing[:1], fit.initial_states,
-                                              engine_solver(fit.solver)))
+                                              fit.solver))
     assert score > 0.97
     assert strength == pytest.approx(0.5, rel=0.15)
 
@@ -128,7 +127,7 @@ def test_warm_started_secant_outputs_equal_cold_simulations(duffing):
     record = duffing[0]
     base, fit, _ = fitted(record)
     extended = (base + CubicStiffness()).assign(**{"cubic_stiffness.k3": 0.3})
-    warm = Secant(base, [record], fit.initial_states, engine_solver(fit.solver)).outputs(extended)
+    warm = Secant(base, [record], fit.initial_states, fit.solver).outputs(extended)
     cold = simulate_record(extended, record, solver=RK4(substeps=1)).flatten()
     assert float((warm - cold).abs().max() / cold.abs().max()) < 1e-10
 

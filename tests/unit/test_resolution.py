@@ -10,7 +10,7 @@ below the noise). At h = 0.35 s (h omega0 = 0.7, Silverbox's) one RK4 step per s
 import pytest
 import torch
 
-from torchpaml import RK4, Auto, Exact
+from torchpaml import RK4, TRBDF2, Auto, Exact
 from torchpaml import (
     ConstantForce,
     CubicStiffness,
@@ -24,8 +24,8 @@ from torchpaml import (
     time_grid,
 )
 from torchpaml._fit import resolution
+from torchpaml._simulate import solvers
 from torchpaml._fit.resolution import STEP_TOLERANCE, step_gap
-from torchpaml._simulate.solvers import continued, engine_solver
 
 TRUTH = {"zeta": 0.05, "omega0": 2.0, "gain": 4.0, "cubic_stiffness.k3": 0.5}
 
@@ -68,7 +68,7 @@ def test_a_resolved_fit_keeps_one_step_per_sample():
 
 
 def test_an_optimum_that_needs_more_substeps_than_allowed_is_refused_naming_the_fix(monkeypatch):
-    monkeypatch.setattr(resolution, "MAX_SUBSTEPS", 1)
+    monkeypatch.setattr(solvers, "MAX_SUBSTEPS", 1)
     with pytest.raises(ResolutionError, match=r"depends on the RK4 step.*Fit with solver=TRBDF2\(\).*bound that rate "
                                               r".* or sample faster"):
         fit_physics(start(), record(0.35), solver=RK4())
@@ -78,13 +78,13 @@ def test_an_optimum_that_needs_more_substeps_than_allowed_is_refused_naming_the_
 
 
 def test_a_fit_of_a_model_built_on_a_fitted_one_starts_its_step_check_from_that_fit():
-    assert continued(RK4(substeps=4)) == Auto(start=RK4(substeps=4))
-    assert engine_solver(continued(RK4(substeps=4))) == RK4(substeps=4)
+    assert Auto(start=RK4(substeps=4)).stepping() == RK4(substeps=4)
+    assert Auto(start=Auto(start=TRBDF2(substeps=2))).stepping() == TRBDF2(substeps=2)
     # a fitted linear model: the exact path does not apply to physics + effect
-    assert continued(Exact()) == Auto() and engine_solver(continued(Exact())) == RK4(substeps=1)
+    assert Auto(start=Exact()).stepping() == RK4(substeps=1)
     coarse = record(0.35)
     first = fit_physics(start(), coarse)
-    again = fit_physics(start(), coarse, solver=continued(first.solver))
+    again = fit_physics(start(), coarse, solver=Auto(start=first.solver))
     assert again.solver == first.solver
     assert again.parameters == pytest.approx(first.parameters, rel=1e-6)
 
@@ -92,7 +92,7 @@ def test_a_fit_of_a_model_built_on_a_fitted_one_starts_its_step_check_from_that_
 def test_a_ranking_reports_an_unresolved_refit_and_does_not_recommend_it(monkeypatch):
     from torchpaml._diagnostics import rank_missing_effects
 
-    monkeypatch.setattr(resolution, "MAX_SUBSTEPS", 1)
+    monkeypatch.setattr(solvers, "MAX_SUBSTEPS", 1)
     train, validation = record(0.35).window(0, 400, "train"), record(0.35).window(400, None, "validation")
     linear = Oscillator(zeta=0.06, omega0=2.1, gain=3.8, learn=("zeta", "omega0", "gain"))
     ranking = rank_missing_effects(linear, [CubicStiffness(), ConstantForce()], train, validation, shortlist=1)

@@ -16,10 +16,8 @@ import torch
 from torchpaml._data.record import Record
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._simulate.response import forced_response
-from torchpaml._simulate.sensitivity import output_jacobian
-from torchpaml._simulate.shooting import simulate_shooting
-from torchpaml._simulate.simulator import simulate
-from torchpaml._simulate.solvers import Solver, engine_solver
+from torchpaml._simulate.simulator import output_jacobian, simulate
+from torchpaml._simulate.solvers import Auto, Solver
 from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["record_jacobian", "record_output", "record_response", "record_states", "simulate_record"]
@@ -47,19 +45,18 @@ def simulate_record(physics: AbstractPhysics, record: Record, x0: torch.Tensor |
 
 def record_states(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None = None,
                   solver: Solver | None = None) -> torch.Tensor:
-    """The states on ``record`` by the shooting engine with the fixed-step solver of ``solver``
-    (:func:`~torchpaml._simulate.solvers.engine_solver`), (time, n_state), without gradients."""
+    """The states on ``record`` at the resolution of ``solver`` (a fit's ``PhysicsEstimate.solver``;
+    :meth:`~torchpaml.Solver.states` of ``Auto(start=solver)``), (time, n_state), without gradients."""
     start = physics.initial_state(1) if x0 is None else _start(x0)
     with torch.no_grad():
-        return simulate_shooting(physics, record.elapsed, record.u[None], start, engine_solver(solver),
-                                 hold=record.hold)[0]
+        return Auto(start=solver).states(physics, record.elapsed, record.u[None], start, hold=record.hold)[0]
 
 
 def record_jacobian(physics: AbstractPhysics, names: Sequence[str], record: Record,
                     x0: torch.Tensor | None = None, warm: WarmStart | None = None, initial_state: bool = False,
                     solver: Solver | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-    """:func:`~torchpaml._simulate.sensitivity.output_jacobian` on ``record``: the output and its Jacobian in
-    the raw parameters ``names`` (and, with ``initial_state``, in ``x0``)."""
+    """:func:`~torchpaml._simulate.simulator.output_jacobian` on ``record``: the output and its Jacobian in
+    the raw parameters ``names`` (and, with ``initial_state``, in ``x0``) at the resolution of ``solver``."""
     return output_jacobian(physics, names, record.elapsed, record.u[None], _start(x0), warm=warm,
                            initial_state=initial_state, hold=record.hold, solver=solver)
 

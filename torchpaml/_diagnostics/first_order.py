@@ -15,7 +15,6 @@ from torchpaml._errors import ConfigurationError
 from torchpaml._fit.physics_fit import PhysicsEstimate
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import AbstractEffect
-from torchpaml._simulate.solvers import engine_solver
 
 __all__ = ["ACTING", "MIN_ACTING_SHARE", "NULL_DIRECTION", "Engines", "acting_share", "beyond_physics", "by_promise",
            "first_order", "physics_step", "share"]
@@ -38,7 +37,7 @@ class Engines:
 
     def __init__(self, base: AbstractPhysics, train: list[Record], fit: PhysicsEstimate, scale: torch.Tensor):
         self.base, self.train, self.initial_states, self.scale = base, train, fit.initial_states, scale
-        self.solver = engine_solver(fit.solver)
+        self.solver = fit.solver
         self.built: dict[str, tuple[TangentLinear | Secant, torch.Tensor] | None] = {}
 
     def of(self, effect: AbstractEffect) -> tuple[TangentLinear | Secant, torch.Tensor]:

@@ -18,8 +18,8 @@ from torchpaml._errors import DataError, SimulationError
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._grid import uniform_step
 from torchpaml._simulate.lti import simulate_lti
-from torchpaml._simulate.shooting import solve_shooting
-from torchpaml._simulate.solvers import FixedStep
+from torchpaml._simulate.solvers import Auto, Solver
+from torchpaml._simulate.warm import WarmStart
 from torchpaml._simulate.blowup import checked_output
 
 __all__ = ["Secant", "TangentLinear", "assigned"]
@@ -105,18 +105,18 @@ class Secant:
     """Outputs of ``base + effect`` near the base, by simulations in the shooting engine warm-started from the base's trajectory.
 
     For a nonlinear base (or non-uniform records), where :class:`TangentLinear` does not apply; ``solver``: the
-    fixed-step solver the base was fitted with (:func:`~torchpaml._simulate.solvers.engine_solver`). A probe
+    solver the base was fitted with, at whose resolution the probes simulate (:meth:`~torchpaml.Solver.states`). A probe
     at a small strength stays close to the base, so Newton, started from the base's converged states,
     needs a sweep or two instead of the several of a cold start.
     """
 
     def __init__(self, base: AbstractPhysics, train: list[Record], initial_states: list[torch.Tensor],
-                 solver: FixedStep):
-        self.records, self.solver = [], solver
+                 solver: Solver):
+        self.records, self.solver = [], Auto(start=solver)
         with torch.no_grad():
             for record, x0 in zip(train, initial_states, strict=True):
                 t, u, start, hold = record.elapsed, record.u[None], x0.reshape(1, -1), record.hold
-                guess = solve_shooting(base, t, u, start, solver, sensitivities=False, hold=hold).trajectory
+                guess = self.solver.states(base, t, u, start, hold=hold)
                 self.records.append((t, u, start, hold, guess))
 
     def outputs(self, extended: AbstractPhysics) -> torch.Tensor:
@@ -125,8 +125,7 @@ class Secant:
         with torch.no_grad():
             for t, u, start, hold, guess in self.records:
                 start = complete_state(extended, start, 1)  # an effect's own states start at their declared values
-                states = solve_shooting(extended, t, u, start, self.solver, sensitivities=False,
-                                        guess=guess, hold=hold).trajectory
+                states = self.solver.states(extended, t, u, start, warm=WarmStart(guess), hold=hold)
                 parts.append(checked_output(extended.output(states, u), t).flatten())
         return torch.cat(parts)
 

@@ -63,7 +63,7 @@ from torchpaml._fit.physics_fit import PhysicsEstimate, fit_physics
 from torchpaml._parameters import unphysical_values
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import AbstractEffect
-from torchpaml._simulate.solvers import Solver, continued
+from torchpaml._simulate.solvers import Auto, Solver
 
 __all__ = ["EffectEvidence", "ModelScore", "Ranking", "rank_missing_effects"]
 
@@ -113,7 +113,7 @@ def rank_missing_effects(
         fit_budget: after a refit (``refitted``), the fit of ``physics`` may take this many times that refit.
         deadline: a ``time.perf_counter()`` time by which every fit must end (the diagnosis' ``budget``).
         solver: the solver ``physics`` was last fitted with (``PhysicsEstimate.solver``), where the step checks of
-            its fits start (:func:`~torchpaml._simulate.solvers.continued`); default ``Auto()``.
+            its fits start (``Auto(start=solver)``); default ``Auto()``.
         refitted: the refit that ``physics`` comes from (a ladder's next rung): the fit of ``physics`` may take
             ``fit_budget`` times that refit, and keeps the refit's parameters over it (``Ranking.fit_over_budget``).
             Without it, the fit runs to the ``deadline``.
@@ -183,7 +183,7 @@ def _rung_fit(physics: AbstractPhysics, train: list[Record], max_nfev: int, init
     budget = Budget(label, None if refitted is None else fit_budget * earlier, deadline=deadline)
     try:
         fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states,
-                          solver=continued(solver), budget=budget)
+                          solver=Auto(start=solver), budget=budget)
     except OverBudget as over:
         if refitted is None:
             raise ConfigurationError(f"{label} did not end within the diagnosis' budget ({over.seconds:.0f} s); give "

@@ -25,7 +25,7 @@ from torchpaml._fit.physics_fit import PhysicsEstimate, fit_physics
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import unphysical_values
 from torchpaml._simulate.sensitivity import raw_parameters
-from torchpaml._simulate.solvers import Solver, continued, engine_solver
+from torchpaml._simulate.solvers import Auto, Solver
 from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["GATE_MARGIN", "REFIT_CRITERION_STEP", "RESCUE_FRACTIONS", "Refits", "cannot_pass", "free_shape",
@@ -70,7 +70,7 @@ def refit_effect(extended: AbstractPhysics, name: str, start: float, train: list
     """
     initial_state = as_initial_state(initial_state)
     warm = [WarmStart() for _ in train]  # the check's simulations start the fit's first Newton solves
-    solver = continued(solver if solver is not None or baseline is None else baseline.solver)
+    solver = Auto(start=solver if solver is not None or baseline is None else baseline.solver)
     fit = functools.partial(fit_physics, extended, train, max_nfev=max_nfev, initial_state=initial_state, ftol=ftol,
                             budget=budget, bounds=bounds, solver=solver)
     states = None if baseline is None or not initial_state.estimated else baseline.initial_states
@@ -136,10 +136,10 @@ def _training_mismatch(physics: AbstractPhysics, train: list[Record], states: li
                        warm: list[WarmStart],
                        solver: Solver) -> float:
     r"""The :func:`~torchpaml.mismatch` over the training records from ``states`` (or rest), simulated by the
-    solver that a fit with ``solver`` starts from (:func:`~torchpaml._simulate.solvers.engine_solver`; the fit then
+    solver that a fit with ``solver`` starts from (:meth:`~torchpaml.Solver.stepping` of ``Auto(start=solver)``; the fit then
     checks its own step); inf if the simulation blows up. Each record's solution is left in its
     :class:`~torchpaml.WarmStart` of ``warm``."""
-    solver = engine_solver(solver)
+    solver = Auto(start=solver).stepping()
     try:
         outputs = [simulate_record(physics, r, x0, solver=solver, warm=w)[0]
                    for r, x0, w in zip(train, states or [None] * len(train), warm, strict=True)]
@@ -161,7 +161,7 @@ def free_shape(entry: EffectEvidence, train: list[Record], validation: list[Reco
     states = score.train_states if initial_state.estimated else None
     try:
         estimate = fit_physics(freed, train, max_nfev=max_nfev, initial_state=initial_state, start_states=states,
-                               ftol=ftol, budget=budget, bounds=bounds, solver=continued(score.solver))
+                               ftol=ftol, budget=budget, bounds=bounds, solver=Auto(start=score.solver))
     except OverBudget as over:
         entry.refit_reason += f"; its shape ({', '.join(shape)}) not freed: over budget ({over.seconds:.1f} s)"
         return

@@ -14,7 +14,7 @@ from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state
 from torchpaml._metrics import mismatch
 from torchpaml._physics.base import AbstractPhysics
-from torchpaml._simulate.solvers import continued
+from torchpaml._simulate.solvers import Auto
 
 __all__ = ["as_records", "score_model"]
 
@@ -42,7 +42,7 @@ def score_model(
     """
     initial_state = as_initial_state(initial_state)
     sse, n, norm = 0.0, 0, 0.0
-    starts = [estimate_initial_state(physics, r, solver=continued(fit.solver)) if initial_state.estimated else None
+    starts = [estimate_initial_state(physics, r, solver=Auto(start=fit.solver)) if initial_state.estimated else None
               for r in validation]
     outputs = []
     for record, x0 in zip(validation, starts, strict=True):

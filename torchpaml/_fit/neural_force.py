@@ -31,7 +31,7 @@ from torchpaml._physics.terms import variables_of
 from torchpaml._residual.mlp import MLPRate, RateAugmented
 from torchpaml._data.simulation import record_output, record_states
 from torchpaml._simulate.warm import WarmStart
-from torchpaml._simulate.solvers import FixedStep, Solver, engine_solver
+from torchpaml._simulate.solvers import Auto, FixedStep, Solver
 
 __all__ = ["NeuralForceFit", "fit_neural_force"]
 
@@ -73,12 +73,12 @@ def fit_neural_force(
         depth: number of hidden tanh layers of the network.
         max_iter: L-BFGS iterations.
         seed: seed of the network's initial weights.
-        solver: the solver ``physics`` was fitted with (its fixed-step one integrates the network too,
-            :func:`~torchpaml._simulate.solvers.engine_solver`).
+        solver: the solver ``physics`` was fitted with (its fixed-step method at its substeps integrates the network
+            too: :meth:`~torchpaml.Solver.stepping` of ``Auto(start=solver)``).
         budget: a :class:`~torchpaml.Budget`: progress lines, and over its limit the network stays where the search
             stood (``NeuralForceFit.stopped``).
     """
-    solver = engine_solver(solver)
+    solver = Auto(start=solver).stepping()
     frozen = copy.deepcopy(physics)
     frozen.set_learnable(*frozen.learnable_names(), learn=False)
     _, equations = variables_of(frozen)

@@ -47,9 +47,9 @@ from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.checks import check_channels
 from torchpaml._data.checks import check_outputs_vary
-from torchpaml._simulate.lti import exact_step
+from torchpaml._simulate.simulator import checked_solver
+from torchpaml._simulate.solvers import Exact, Solver
 from torchpaml._simulate.stiffness import STIFF_SUBSTEPS
-from torchpaml._simulate.solvers import TRBDF2, Auto, Exact, FixedStep, Solver, engine_solver
 from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["PhysicsEstimate", "estimate_initial_state", "fit_physics"]
@@ -69,10 +69,10 @@ class PhysicsEstimate:
         uncertainty: standard errors, 95 % intervals and the identifiability check of ``parameters``
             (and of the initial states, named ``x0[record].state``, where they were estimated).
         initial_states: each record's initial state (n_state,): rest, or the estimate.
-        solver: the solver the fit ended with (the step check): RK4 or TRBDF2 at whole substeps, or ``Exact()``
-            where every record takes the exact path. Simulate the fitted model with it to simulate it as the fit
-            did; fit a model built on this one with ``Auto(start=solver)``
-            (:func:`~torchpaml._simulate.solvers.continued`) to start its step check here.
+        solver: the solver the fit ended with (the step check; :meth:`~torchpaml.Solver.simulating`): a fixed-step
+            method at whole substeps, or ``Exact()`` where every record takes the exact path. Simulate the fitted
+            model with it to simulate it as the fit did; fit a model built on this one with ``Auto(start=solver)`` to
+            start its step check here.
     """
 
     parameters: dict[str, float]
@@ -138,18 +138,19 @@ def fit_physics(
         max_nfev: iteration limit of the trust region.
         ftol: the trust region stops when a step lowers the cost $\tfrac12\|r\|^2$ by less than this share of it
             (scipy's ``ftol``); the default fits to the last digits, a ranking's refits stop earlier.
-        solver: ``RK4(...)`` or ``TRBDF2(...)``: the method and the substeps to start from (``"auto"``: one), or
-            ``Auto()``/``None`` (the default): RK4 at one substep (or ``Auto``'s ``start``, a previous fit's
-            solver), and TR-BDF2 where RK4 cannot resolve the optimum. The step check raises the substeps where
-            the fitted output depends on the step (:mod:`torchpaml._fit.resolution`).
+        solver: any :class:`~torchpaml.Solver`, at whose resolution (:meth:`~torchpaml.Solver.states`) the fit
+            simulates and differentiates: ``RK4(...)``, ``TRBDF2(...)`` or a user's fixed-step method, from its
+            substeps (``"auto"``: one); ``Auto()``/``None`` (the default): the exact path for linear physics, else RK4
+            at one substep (or from ``Auto``'s ``start``, a previous fit's solver), and TR-BDF2 where RK4 cannot
+            resolve the optimum (:meth:`~torchpaml.Solver.fallback`); an adaptive one (``Dopri5()``) as it is. The
+            step check refines the step where the fitted output depends on it (:mod:`torchpaml._fit.resolution`).
         budget: a :class:`~torchpaml.Budget`: progress lines while the fit runs, and
             :class:`~torchpaml.OverBudget` raised past its limit (default: neither).
     """
     initial_state = as_initial_state(initial_state)
-    switch = solver is None or isinstance(solver, Auto)  # may go on with the implicit method
     records = [records] if isinstance(records, Record) else list(records)
     names = _checked_unknowns(physics, records, initial_state, start_states)
-    problem = TrustRegionProblem(physics, records, names, initial_state.estimated, _starting_solver(solver),
+    problem = TrustRegionProblem(physics, records, names, initial_state.estimated, checked_solver(solver),
                                  [WarmStart() for _ in records] if warm is None else list(warm), budget)
     lower, upper = _raw_bounds(physics, names, bounds or {})
     if initial_state.estimated:
@@ -157,7 +158,7 @@ def fit_physics(
         upper = np.concatenate([upper, np.full(physics.state_dim * len(records), np.inf)])
     x = problem.start(start_states, lower, upper)
     problem.evaluate(x)  # raises SimulationError, naming the blow-up, at a bad start
-    step_check = _StepCheck(problem, switch)
+    step_check = _StepCheck(problem)
     result = None
     with budget.active() if budget is not None else contextlib.nullcontext():  # the step check's simulations too
         while (resolved := step_check.solver(x, result is not None)) != problem.solver or result is None:
@@ -187,31 +188,31 @@ def _checked_unknowns(physics: AbstractPhysics, records: list[Record], initial_s
 class _StepCheck:
     """The solver the step check (:mod:`torchpaml._fit.resolution`) resolves at a point of ``problem``: the whole
     check at an optimum, only the step's stability at the start (a start's step error only delays the fit, whose
-    optimum is checked). With the default solver (``switch``), physics that RK4 cannot resolve goes on with
-    TR-BDF2."""
+    optimum is checked). Where the solver cannot resolve it, the fit goes on with its
+    :meth:`~torchpaml.Solver.fallback` (the default's TR-BDF2 for physics too stiff for RK4), if it has one."""
 
-    def __init__(self, problem: TrustRegionProblem, switch: bool):
-        self.problem, self.switch = problem, switch
-        self.most_stable = STIFF_SUBSTEPS if switch else MAX_SUBSTEPS  # beyond, the default goes on with TR-BDF2
+    def __init__(self, problem: TrustRegionProblem):
+        self.problem = problem
 
-    def solver(self, x: np.ndarray, optimum: bool) -> FixedStep:
+    def solver(self, x: np.ndarray, optimum: bool) -> Solver:
         problem, current = self.problem, self.problem.solver
         residual = problem.evaluate(x)[0]  # also sets the model to x
+        fallback = current.fallback()
+        most_stable = MAX_SUBSTEPS if fallback is None else STIFF_SUBSTEPS  # beyond, the fallback goes on
         try:
             if not optimum:
-                return stable_solver(problem.physics, current, problem.records, problem.starts(x), self.most_stable)
+                return stable_solver(problem.physics, current, problem.records, problem.starts(x), most_stable)
             return resolved_solver(problem.physics, current, problem.records, problem.starts(x),
-                                   float(np.linalg.norm(residual)), self.most_stable, problem.outputs(residual))
+                                   float(np.linalg.norm(residual)), most_stable, problem.outputs(residual))
         except ResolutionError:
-            if not self.switch or isinstance(current, TRBDF2):
+            if fallback is None:
                 raise
-            return TRBDF2(substeps=1, segment=current.segment)  # stiff (or unresolved) for RK4: the implicit method
+            return fallback
 
 
 def _estimate(problem: TrustRegionProblem, x: np.ndarray) -> PhysicsEstimate:
     """The :class:`PhysicsEstimate` at the optimum ``x`` (the model set there), its uncertainty included."""
     physics, names, records = problem.physics, problem.names, problem.records
-    linear = all(exact_step(physics, r.t) is not None for r in records)
     residual, jacobian = problem.evaluate(x)
     values = physics.physical_parameters()
     residual, jacobian = torch.from_numpy(residual.copy()), torch.from_numpy(jacobian.copy())
@@ -225,17 +226,14 @@ def _estimate(problem: TrustRegionProblem, x: np.ndarray) -> PhysicsEstimate:
     warn_if_unidentifiable(uncertainty, physics.display_name)
     return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,
                            jacobian, problem.simulations, uncertainty, initial_states,
-                           Exact() if linear else problem.solver)
+                           _simulating(problem.solver, physics, records))
 
 
-def _starting_solver(solver: Solver | None) -> FixedStep:
-    """The fixed-step solver a fit starts from (``fit_physics``'s ``solver``)."""
-    if solver is None or isinstance(solver, Auto):
-        return engine_solver(solver)
-    if not isinstance(solver, FixedStep):
-        raise ConfigurationError(f"fit_physics integrates with RK4(...) or TRBDF2(...) (or the default), got {solver!r}; "
-                         "linear physics on a uniform grid takes the exact path by itself")
-    return solver.at(1) if solver.substeps == "auto" else solver
+def _simulating(solver: Solver, physics: AbstractPhysics, records: list[Record]) -> Solver:
+    """The solver that simulates the fitted model as the fit did (:meth:`~torchpaml.Solver.simulating`): ``Exact()``
+    where every record takes the exact path, else the one the others take."""
+    used = [solver.simulating(physics, r.elapsed) for r in records]
+    return next((s for s in used if s != Exact()), used[0])
 
 
 def estimate_initial_state(physics: AbstractPhysics, record: Record, samples: int | None = None,

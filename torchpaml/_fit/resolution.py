@@ -31,11 +31,11 @@ import torch
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._data import Record
 from torchpaml._errors import ResolutionError, SimulationError
-from torchpaml._simulate.lti import exact_step
-from torchpaml._data.simulation import record_states, simulate_record
-from torchpaml._simulate.solvers import RK4, TRBDF2, FixedStep
-from torchpaml._simulate.step_control import MAX_SUBSTEPS, next_substeps
-from torchpaml._simulate.stiffness import stable_substeps, stiffness
+from torchpaml._data.simulation import record_states
+from torchpaml._simulate.blowup import checked_output
+from torchpaml._simulate.solvers import TRBDF2, Solver
+from torchpaml._simulate.step_control import MAX_SUBSTEPS
+from torchpaml._simulate.stiffness import stiffness
 
 __all__ = ["MAX_SUBSTEPS", "STEP_FLOOR", "STEP_TOLERANCE", "resolved_solver", "stable_solver", "step_gap"]
 
@@ -45,24 +45,34 @@ STEP_FLOOR = 1e-6
 PROBE_STRIDE = 16
 
 
-def step_gap(physics: AbstractPhysics, solver: FixedStep, records: Sequence[Record],
+def _output(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None, solver: Solver) -> torch.Tensor:
+    """The output (time, n_output) on ``record`` at ``solver``'s resolution (:meth:`~torchpaml.Solver.states`)."""
+    start = physics.initial_state(1) if x0 is None else x0.reshape(1, -1)
+    t, u = record.elapsed, record.u[None]
+    with torch.no_grad():
+        return checked_output(physics.output(solver.states(physics, t, u, start, hold=record.hold), u), t)[0]
+
+
+def step_gap(physics: AbstractPhysics, solver: Solver, records: Sequence[Record],
              states: Sequence[torch.Tensor | None],
              outputs: Sequence[torch.Tensor] | None = None) -> float:
-    """$g$ (module docstring) of ``solver`` over the records that the engine simulates, from each record's initial
-    state (or rest); 0 where every record takes the exact path. ``outputs``: each record's output at ``solver``
-    (time, n_output) where the caller has it (a fit's last evaluation), else simulated here."""
+    """$g$ (module docstring) of ``solver`` over the records where it has a step to halve
+    (:meth:`~torchpaml.Solver.halved`: not on the exact path), from each record's initial state (or rest); 0 where
+    none has. ``outputs``: each record's output at ``solver`` (time, n_output) where the caller has it (a fit's last
+    evaluation), else simulated here."""
     squared, norm = 0.0, 0.0
     for i, (record, x0) in enumerate(zip(records, states, strict=True)):
-        if exact_step(physics, record.t) is not None:
+        at = solver.simulating(physics, record.elapsed)
+        finer = at.halved()
+        if finer is None:
             continue
-        coarse = simulate_record(physics, record, x0, solver=solver)[0] if outputs is None else outputs[i]
-        fine = simulate_record(physics, record, x0, solver=solver.at(2 * solver.substeps))[0]
-        squared += float((coarse - fine).square().sum())
+        coarse = _output(physics, record, x0, at) if outputs is None else outputs[i]
+        squared += float((coarse - _output(physics, record, x0, finer)).square().sum())
         norm += float(record.y.square().sum())
     return 0.0 if norm == 0.0 else math.sqrt(squared / norm)
 
 
-def _stiffness(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None, solver: FixedStep) -> float:
+def _stiffness(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None, solver: Solver) -> float:
     r"""$\sigma$ of ``record`` (:func:`~torchpaml._simulate.stiffness.stiffness`) along the trajectory that the
     L-stable TR-BDF2 draws at one step per :data:`PROBE_STRIDE` samples: it follows the physics into a stiff region
     that an unstable explicit step can leave unseen, at a fraction of a simulation's cost; along ``solver``'s own
@@ -76,30 +86,29 @@ def _stiffness(physics: AbstractPhysics, record: Record, x0: torch.Tensor | None
     return stiffness(physics, probe.elapsed, probe.u[None], states[None]) / stride
 
 
-def stable_solver(physics: AbstractPhysics, solver: FixedStep, records: Sequence[Record],
+def stable_solver(physics: AbstractPhysics, solver: Solver, records: Sequence[Record],
                   states: Sequence[torch.Tensor | None],
-                  most_stable: int = MAX_SUBSTEPS) -> FixedStep:
-    """``solver`` at the substeps where its step is stable along the trajectory of ``physics``
-    (:mod:`~torchpaml._simulate.stiffness`): itself for an implicit method, or where every record takes the exact
-    path. Raises :class:`~torchpaml.ResolutionError` where that needs more than ``most_stable``."""
-    if not isinstance(solver, RK4):
+                  most_stable: int = MAX_SUBSTEPS) -> Solver:
+    """``solver`` at the step where it is stable along the trajectory of ``physics``
+    (:meth:`~torchpaml.Solver.stable`): itself where its step has no stability limit, or where every record takes
+    the exact path. Raises :class:`~torchpaml.ResolutionError` where that needs more than ``most_stable``."""
+    if solver.stability is None:
         return solver
     sigma = max((_stiffness(physics, r, x0, solver) for r, x0 in zip(records, states, strict=True)
-                 if exact_step(physics, r.t) is None), default=0.0)
-    return solver.at(stable_substeps(solver, sigma, most_stable))
+                 if solver.simulating(physics, r.elapsed).stability is not None), default=0.0)
+    return solver.stable(sigma, most_stable)
 
 
-def resolved_solver(physics: AbstractPhysics, solver: FixedStep, records: Sequence[Record],
+def resolved_solver(physics: AbstractPhysics, solver: Solver, records: Sequence[Record],
                     states: Sequence[torch.Tensor | None],
                     misfit: float, most_stable: int = MAX_SUBSTEPS, outputs: Sequence[torch.Tensor] | None = None
-                    ) -> FixedStep:
-    """The solver at the substeps where the fitted ``physics`` passes the step check (module docstring): ``solver``
-    where it passes; else, where its explicit step is unstable along the fitted trajectory, it at the substeps
-    that make it stable (:func:`stable_solver`); else it at the next power-of-two multiple its order predicts to
-    pass. ``outputs``: each record's output at ``solver`` where the caller has it (:func:`step_gap`). Raises
-    :class:`~torchpaml.ResolutionError` beyond :data:`MAX_SUBSTEPS`, or where stability alone needs more
-    than ``most_stable``."""
-    m = solver.substeps
+                    ) -> Solver:
+    """The solver at the step where the fitted ``physics`` passes the step check (module docstring): ``solver``
+    where it passes; else, where its explicit step is unstable along the fitted trajectory, it at the step that
+    makes it stable (:func:`stable_solver`); else it at the finer step its order predicts to pass
+    (:meth:`~torchpaml.Solver.refined`). ``outputs``: each record's output at ``solver`` where the caller has it
+    (:func:`step_gap`). Raises :class:`~torchpaml.ResolutionError` beyond :data:`MAX_SUBSTEPS`, or where stability
+    alone needs more than ``most_stable``."""
     stable = stable_solver(physics, solver, records, states, most_stable)
     if stable != solver:  # the step doubling cannot judge an unstable step
         return stable
@@ -107,15 +116,15 @@ def resolved_solver(physics: AbstractPhysics, solver: FixedStep, records: Sequen
     allowed = STEP_TOLERANCE * misfit
     if gap <= max(allowed, STEP_FLOOR):
         return solver
-    following = next_substeps(m, gap, max(allowed, STEP_FLOOR), solver.order)
-    if following > MAX_SUBSTEPS:
+    following = solver.refined(gap, max(allowed, STEP_FLOOR))
+    if following is None:
         step = float(records[0].t[1] - records[0].t[0])
-        method = type(solver).__name__
+        method = solver.stepping() or solver
         raise ResolutionError(
-            f"{physics.display_name}'s fitted output depends on the {method} step: halving the step at {m} substeps "
-            f"per sample moves it by {100 * gap:.3g} % of the output, against a misfit of {100 * misfit:.3g} %, and "
-            f"resolving it needs more than {MAX_SUBSTEPS} substeps. A rate of the fitted model is far faster than "
-            f"the sampling (h = {step:g} s), and the fit settled where the integration error explains the data. "
-            f"Fit with solver=TRBDF2() (implicit, for stiff physics), bound that rate (physics.bound(name, lower, "
-            f"upper)) to what the sampling resolves, or sample faster. Parameters: {physics.physical_parameters()}")
-    return solver.at(following)
+            f"{physics.display_name}'s fitted output depends on the {type(method).__name__} step: halving the step at "
+            f"{method.substeps} substeps per sample moves it by {100 * gap:.3g} % of the output, against a misfit of "
+            f"{100 * misfit:.3g} %, and resolving it needs more than {MAX_SUBSTEPS} substeps. A rate of the fitted model is far faster than the sampling (h = {step:g} "
+            f"s), and the fit settled where the integration error explains the data. Fit with solver=TRBDF2() "
+            f"(implicit, for stiff physics), bound that rate (physics.bound(name, lower, upper)) to what the sampling "
+            f"resolves, or sample faster. Parameters: {physics.physical_parameters()}")
+    return following

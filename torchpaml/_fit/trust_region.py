@@ -23,7 +23,7 @@ from torchpaml._errors import SimulationError
 from torchpaml._metrics import sample_scales
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._simulate.sensitivity import raw_parameters
-from torchpaml._simulate.solvers import FixedStep
+from torchpaml._simulate.solvers import Solver
 from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["TrustRegionProblem"]
@@ -31,11 +31,11 @@ __all__ = ["TrustRegionProblem"]
 
 class TrustRegionProblem:
     """Residual and Jacobian at a point $x$ (module docstring), each point computed once (a memo of the last), with
-    the simulations counted and the lowest cost kept; ``solver`` is the fixed-step solver of the records'
+    the simulations counted and the lowest cost kept; ``solver`` is the solver of the records'
     simulations, which the step check may replace (:meth:`use`)."""
 
     def __init__(self, physics: AbstractPhysics, records: list[Record], names: list[str], estimated: bool,
-                 solver: FixedStep, warm: list[WarmStart], budget: Budget | None):
+                 solver: Solver, warm: list[WarmStart], budget: Budget | None):
         self.physics, self.records, self.names, self.estimated = physics, records, names, estimated
         self.solver, self.warm, self.budget = solver, warm, budget
         self.raw = list(raw_parameters(physics, names).values())
@@ -48,7 +48,7 @@ class TrustRegionProblem:
     def samples(self) -> int:
         return sum(y.numel() for y in self.targets)
 
-    def use(self, solver: FixedStep) -> None:
+    def use(self, solver: Solver) -> None:
         """Simulate by ``solver`` from now on (the points already computed no longer count)."""
         if solver != self.solver:
             self.solver = solver

@@ -39,24 +39,12 @@ from torch import nn
 from torch.nn.utils import parametrize
 
 from torchpaml._errors import ConfigurationError
+from torchpaml._simulate.dynamics import complete_state
+from torchpaml._simulate.simulator import simulate
 from torchpaml._parameters import (Interval, copied_with_own_parametrizations, describe_parameters, format_table,
                                   with_uncertainty)
 
 __all__ = ["AbstractPhysics", "SecondOrderPhysics", "complete_state", "state_vector"]
-
-
-def complete_state(physics: AbstractPhysics, x0: torch.Tensor | None, batch: int) -> torch.Tensor:
-    """The initial state (batch, n_state) to simulate ``physics`` from: rest (``physics.initial_state``) where
-    ``x0`` is ``None``; ``x0`` itself; or, where ``x0`` holds only the first states (those of the base of
-    ``physics + effect``), ``x0`` followed by the rest of ``physics.initial_state`` (the effects' own states at
-    their declared initial values). Raises ``ValueError`` for an ``x0`` with more states than the physics."""
-    rest = physics.initial_state(batch if x0 is None else x0.shape[0])
-    if x0 is None:
-        return rest
-    n, k = rest.shape[-1], x0.shape[-1]
-    if k > n:
-        raise ConfigurationError(f"x0 has {k} states, but {physics.display_name} has {n}: {list(physics.state_names)}")
-    return x0 if k == n else torch.cat([x0, rest.to(x0)[..., k:]], dim=-1)
 
 
 def state_vector(columns: list[torch.Tensor]) -> torch.Tensor:
@@ -135,15 +123,7 @@ class AbstractPhysics(nn.Module):
     def forward(self, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None, **options) -> torch.Tensor:
         """``simulate(self, t, u, x0, **options)``: t (time,), u (batch, time, n_input) -> y (batch, time, n_output),
         by ``Auto()`` unless ``solver=`` is given (:func:`~torchpaml.simulate`)."""
-        from torchpaml._simulate.simulator import simulate  # the simulator builds on the physics: imported when run
-
         return simulate(self, t, u, x0, **options)
-
-    def __add__(self, effect):
-        """``physics + effect`` -> :class:`~torchpaml.ComposedModel`; ``TypeError`` where the effect does not apply."""
-        from torchpaml._physics.composed import compose
-
-        return compose(self, effect)
 
     # -- parameters --------------------------------------------------------------------------
     def _rows(self) -> list[dict]:

@@ -24,15 +24,15 @@ from torch import nn
 from torchpaml._errors import ConfigurationError
 from torchpaml._parameters import describe_parameters
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
-from torchpaml._physics.effects import AbstractEffect
 
 __all__ = ["ComposedModel", "compose"]
 
 
-def compose(physics: AbstractPhysics, effect: AbstractEffect) -> ComposedModel:
-    """``physics + effect`` (see the module docstring)."""
-    if not isinstance(effect, AbstractEffect):
-        raise ConfigurationError(f"can only add an AbstractEffect to physics, got {type(effect).__name__}")
+def compose(physics: AbstractPhysics, effect) -> ComposedModel:
+    """``physics + effect`` (see the module docstring), called by the effect (:class:`~torchpaml.AbstractEffect`)."""
+    if not isinstance(physics, AbstractPhysics):
+        raise ConfigurationError(f"an effect is added to physics (physics + effect), got {type(physics).__name__} + "
+                                 f"{type(effect).__name__}")
     if isinstance(physics, ComposedModel):
         return ComposedModel(physics.base, [*physics.effects.values(), effect])
     return ComposedModel(physics, [effect])
@@ -45,7 +45,7 @@ class ComposedModel(AbstractPhysics):
     (:meth:`~torchpaml.AbstractEffect.applies_to`).
     """
 
-    def __init__(self, base: AbstractPhysics, effects: list[AbstractEffect]):
+    def __init__(self, base: AbstractPhysics, effects: list):
         super().__init__()
         for effect in effects:
             reason = effect.applies_to(base)
@@ -120,7 +120,7 @@ class ComposedModel(AbstractPhysics):
             total = term if total is None else total + term
         return total
 
-    def _seen(self, effect: AbstractEffect, x: torch.Tensor) -> torch.Tensor:
+    def _seen(self, effect, x: torch.Tensor) -> torch.Tensor:
         """The base's states as an effect with memory reads them: a force's degree of freedom as the columns
         (position, velocity), else every state."""
         if not effect.is_force or isinstance(self.base, SecondOrderPhysics):

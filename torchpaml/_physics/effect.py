@@ -12,6 +12,7 @@ from torch import nn
 from torchpaml._errors import ConfigurationError
 from torchpaml._parameters import copied_with_own_parametrizations
 from torchpaml._physics.base import state_vector
+from torchpaml._physics.composed import ComposedModel, compose
 
 __all__ = ["AbstractEffect", "EffectState"]
 
@@ -105,6 +106,11 @@ class AbstractEffect(nn.Module):
     def strength(self) -> str:
         """The strength parameter: the first declared one. At strength 0 the effect must leave the model unchanged."""
         return next(iter(self._physical))
+
+    def __radd__(self, physics) -> ComposedModel:
+        """``physics + effect`` -> :class:`~torchpaml.ComposedModel` (:func:`~torchpaml._physics.composed.compose`);
+        :class:`~torchpaml.ConfigurationError` where the effect does not apply."""
+        return compose(physics, self)
 
     def applies_to(self, physics: nn.Module) -> str | None:
         """Why this effect cannot be added to ``physics`` (the base model), or ``None`` if it can."""

@@ -2,8 +2,8 @@
 Dopri5), output Jacobians, and differentiable IIR filtering."""
 
 from torchpaml._simulate.iir import iir_filter
-from torchpaml._simulate.sensitivity import output_jacobian, raw_parameters
-from torchpaml._simulate.simulator import simulate
+from torchpaml._simulate.sensitivity import raw_parameters
+from torchpaml._simulate.simulator import output_jacobian, simulate
 from torchpaml._simulate.solvers import RK4, TRBDF2, Auto, Dopri5, Exact, Solver
 from torchpaml._simulate.warm import WarmStart
 

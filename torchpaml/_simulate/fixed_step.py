@@ -3,24 +3,21 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import torch
 
-from torchpaml._physics.base import AbstractPhysics
+from torchpaml._simulate.dynamics import Dynamics
+from torchpaml._simulate.method import Method
 from torchpaml._simulate.blowup import checked_output
 from torchpaml._simulate.shooting import base_guess, simulate_shooting
 from torchpaml._simulate.step_control import MAX_SUBSTEPS, simulate_to_tolerance
 from torchpaml._simulate.stiffness import stable_substeps, stiffness
 from torchpaml._simulate.warm import WarmStart
 
-if TYPE_CHECKING:
-    from torchpaml._simulate.solvers import FixedStep
 
 __all__ = ["simulate_fixed_step"]
 
 
-def simulate_fixed_step(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: FixedStep,
+def simulate_fixed_step(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: Method,
                         warm: WarmStart | None, hold: str, blowup: float, *, most_stable: int = MAX_SUBSTEPS,
                         start: int = 1) -> torch.Tensor:
     """The output (batch, time, n_output) by ``solver`` at its substeps, or to its ``rtol`` (``substeps="auto"``):

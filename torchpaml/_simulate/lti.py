@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import torch
 
-from torchpaml._physics.base import AbstractPhysics
+from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._errors import DataError
 from torchpaml._grid import check_hold, uniform_step
 
@@ -165,7 +165,7 @@ def _free_response(CN: torch.Tensor, poles: torch.Tensor, x0: torch.Tensor, u: t
     return _through_poles(impulse, numerators, poles).reshape(T, batch, p).transpose(0, 1)
 
 
-def exact_step(physics: AbstractPhysics, t: torch.Tensor) -> float | None:
+def exact_step(physics: Dynamics, t: torch.Tensor) -> float | None:
     """The sampling interval when ``physics`` takes the exact path (linear physics, uniform grid), else ``None``."""
     if physics.state_space() is None:
         return None

@@ -7,7 +7,7 @@ from torch import nn
 from torch.nn.utils import parametrize
 from torchdiffeq import odeint, odeint_adjoint
 
-from torchpaml._physics.base import AbstractPhysics
+from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._errors import SimulationError
 from torchpaml._simulate.interpolation import LinearInterpolant
 
@@ -28,7 +28,7 @@ class _Vectorfield(nn.Module):
 
 
 def simulate_ode(
-    physics: AbstractPhysics,
+    physics: Dynamics,
     t: torch.Tensor,
     u: torch.Tensor,
     x0: torch.Tensor,

@@ -19,10 +19,10 @@ $\mathcal L$ for many $w$ at once (one batch row each), by the one simulator:
 from __future__ import annotations
 
 import torch
+from torch import nn
 
-from torchpaml._physics.base import AbstractPhysics
-from torchpaml._simulate.shooting import simulate_shooting
-from torchpaml._simulate.solvers import Solver, engine_solver
+from torchpaml._simulate.dynamics import Dynamics
+from torchpaml._simulate.solvers import Auto, Solver
 from torchpaml._simulate.simulator import simulate
 from torchpaml._simulate.warm import WarmStart
 
@@ -34,14 +34,15 @@ PROBE = 1e-4
 ROW_SAMPLES = 4_000_000
 
 
-class _Injected(AbstractPhysics):
-    """``physics`` with one more input channel per state, added to that state's rate."""
+class _Injected(nn.Module):
+    """``physics`` with one more input channel per state, added to that state's rate (a :class:`Dynamics`)."""
 
-    def __init__(self, physics: AbstractPhysics):
+    def __init__(self, physics: Dynamics):
         super().__init__()
         self.physics = physics
-        self.state_names, self.output_dim = physics.state_names, physics.output_dim
+        self.state_names, self.output_dim, self.state_dim = physics.state_names, physics.output_dim, physics.state_dim
         self.input_dim = physics.input_dim + physics.state_dim
+        self.display_name = f"{physics.display_name} with injected rates"
 
     def derivative(self, t, x, u):
         m = self.physics.input_dim
@@ -53,6 +54,9 @@ class _Injected(AbstractPhysics):
     def initial_state(self, batch):
         return self.physics.initial_state(batch)
 
+    def linear_base(self):
+        return None
+
     def state_space(self):
         matrices = self.physics.state_space()
         if matrices is None:
@@ -63,7 +67,7 @@ class _Injected(AbstractPhysics):
                 torch.cat([D, torch.zeros(D.shape[0], n, dtype=D.dtype)], dim=1))
 
 
-def forced_response(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
+def forced_response(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
                     rates: torch.Tensor, hold: str = "foh", solver: Solver | None = None) -> torch.Tensor:
     r"""$\mathcal L[w]$ (module docstring) for each of ``rates``, without gradients.
 
@@ -72,7 +76,7 @@ def forced_response(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, 
         t: (time,) from 0; u: (1, time, n_input); x0: (1, n_state): one record.
         rates: $w$, (k, time, n_state): k extra rates on the state equations.
         hold: how the input (and the rates) move between samples.
-        solver: the solver ``physics`` was fitted with (:func:`~torchpaml._simulate.solvers.engine_solver`).
+        solver: the solver ``physics`` was fitted with, at whose resolution it is simulated (``Auto(start=solver)``).
 
     Returns:
         (k, time, n_output).
@@ -90,8 +94,8 @@ def forced_response(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, 
                 inputs = torch.cat([drive.expand(len(rows), -1, -1), rows], dim=-1)
                 parts.append(simulate(injected, t, inputs, rest.expand(len(rows), -1), hold=hold))
             return torch.cat(parts)
-        engine = engine_solver(solver)
-        base = simulate_shooting(physics, t, u, x0, engine, hold=hold)
+        engine = Auto(start=solver)
+        base = engine.states(physics, t, u, x0, hold=hold)
         speed = physics.derivative(t, base[0], u[0]).square().mean(dim=0).sqrt()  # each rate's RMS (n,)
         for rows in rates.split(chunk):
             size = rows.square().mean(dim=1).sqrt()  # (rows, n)
@@ -99,7 +103,8 @@ def forced_response(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, 
             signed = torch.cat([eps * rows, -eps * rows])
             inputs = torch.cat([u.expand(len(signed), -1, -1), signed], dim=-1)
             starts = x0.expand(len(signed), -1)
-            y = injected(t, inputs, starts, solver=engine, warm=WarmStart(base.expand(len(signed), -1, -1)),
-                         hold=hold)
+            states = engine.states(injected, t, inputs, starts, warm=WarmStart(base.expand(len(signed), -1, -1)),
+                                   hold=hold)
+            y = injected.output(states, inputs)
             parts.append((y[: len(rows)] - y[len(rows):]) / (2 * eps))
     return torch.cat(parts)

@@ -30,7 +30,7 @@ the engine the same passes as the parameters' with the initial state as the dire
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import torch
 from torch import nn
@@ -38,17 +38,17 @@ from torch.func import functional_call
 
 from torchpaml._errors import ConfigurationError
 from torchpaml._grid import check_hold
-from torchpaml._physics.base import AbstractPhysics, complete_state
+from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.lti import discrete_response, discretize, exact_step, foh_exponent
-from torchpaml._simulate.shooting import ShootingSolution, solve_shooting
-from torchpaml._simulate.solvers import Solver, engine_solver
+from torchpaml._simulate.method import Method
+from torchpaml._simulate.shooting import solve_shooting
 from torchpaml._simulate.blowup import checked_output
 from torchpaml._simulate.warm import WarmStart
 
-__all__ = ["output_jacobian", "raw_parameters"]
+__all__ = ["difference_jacobian", "exact_jacobian", "raw_parameters", "shooting_jacobian"]
 
 
-def raw_parameters(physics: AbstractPhysics, names: Sequence[str]) -> dict[str, torch.Tensor]:
+def raw_parameters(physics: Dynamics, names: Sequence[str]) -> dict[str, torch.Tensor]:
     """``{functional_call key: raw tensor}`` for the physical parameters ``names`` (their unconstrained originals)."""
     keys = {id(p): key for key, p in physics.named_parameters()}
     raw = {}
@@ -59,21 +59,23 @@ def raw_parameters(physics: AbstractPhysics, names: Sequence[str]) -> dict[str, 
     return raw
 
 
-class _Tail(nn.Module):
-    """The differentiable part of a shooting solution and the output map, as a module for ``functional_call``."""
+class _Run(nn.Module):
+    """A trajectory of the physics and its output map, as a module for ``functional_call`` (the physics' parameters
+    replaced while it runs)."""
 
-    def __init__(self, physics: AbstractPhysics, solution: ShootingSolution, x0: torch.Tensor, u: torch.Tensor):
+    def __init__(self, physics: Dynamics, trajectory: Callable[[torch.Tensor], torch.Tensor], x0: torch.Tensor,
+                 u: torch.Tensor):
         super().__init__()
-        self.physics, self.solution, self.x0, self.u = physics, solution, x0, u
+        self.physics, self.trajectory, self.x0, self.u = physics, trajectory, x0, u
 
     def forward(self) -> torch.Tensor:
-        return self.physics.output(self.solution.states(self.physics, self.x0), self.u)
+        return self.physics.output(self.trajectory(self.x0), self.u)
 
 
 class _StateSpace(nn.Module):
     """The matrices (A, B, C, D) of linear physics, flattened into one vector (for ``functional_call``)."""
 
-    def __init__(self, physics: AbstractPhysics):
+    def __init__(self, physics: Dynamics):
         super().__init__()
         self.physics = physics
 
@@ -88,7 +90,7 @@ class _StateSpace(nn.Module):
         return [part.reshape(*flat.shape[:-1], *shape) for part, shape in zip(parts, shapes, strict=True)]
 
 
-def _discretised_derivatives(physics: AbstractPhysics, raw: dict[str, torch.Tensor], h: float, hold: str):
+def _discretised_derivatives(physics: Dynamics, raw: dict[str, torch.Tensor], h: float, hold: str):
     r"""$(\Phi, \Gamma_0, \Gamma_1, C, D)$ for the input's ``hold`` and their derivatives in each raw parameter,
     stacked (p, ...).
 
@@ -117,7 +119,7 @@ def _discretised_derivatives(physics: AbstractPhysics, raw: dict[str, torch.Tens
     return (Phi, G0, G1, C, D), (dPhi, dGa - dGb, dGb, dC, dD)
 
 
-def _exact_jacobian(physics: AbstractPhysics, raw: dict[str, torch.Tensor], h: float, t: torch.Tensor, u: torch.Tensor,
+def _exact_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], h: float, t: torch.Tensor, u: torch.Tensor,
                     x0: torch.Tensor, initial_state: bool, hold: str) -> tuple[torch.Tensor, torch.Tensor]:
     """:func:`output_jacobian` on the exact path, by the sensitivity recurrence (module docstring)."""
     with torch.no_grad():
@@ -155,53 +157,47 @@ def _directional(function, value: torch.Tensor, direction: torch.Tensor) -> torc
         return (function(value + step * direction) - function(value - step * direction)) / (2 * step)
 
 
-def output_jacobian(
-    physics: AbstractPhysics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
-    warm: WarmStart | None = None, initial_state: bool = False, hold: str = "foh", solver: Solver | None = None
-) -> tuple[torch.Tensor, torch.Tensor]:
-    """Output and its Jacobian in the raw parameters ``names`` (module docstring).
-
-    Args:
-        physics: the model.
-        names: physical parameter names, p of them.
-        t: (time,); u: (batch, time, n_input); x0: (batch, n_state), rest if omitted.
-        warm: a :class:`~torchpaml.WarmStart` the caller keeps between calls on the same record (a fit's
-            iterations): the RK4 path stores its converged states in it and starts the next Newton solve from them.
-        initial_state: also differentiate in ``x0``.
-        hold: ``"foh"`` or ``"zoh"``, how the input moves between samples (:func:`~torchpaml.simulate`).
-        solver: the solver the model was fitted with (:func:`~torchpaml._simulate.solvers.engine_solver`: RK4 or
-            TRBDF2 at whole substeps, else RK4 at one); linear physics on a uniform grid takes the exact path.
-
-    Returns:
-        y (batch, time, n_output) and J (batch, time, n_output, p), or (..., p + n_state) with
-        ``initial_state``: the parameters' columns first. Raises
-        :class:`~torchpaml.SimulationError` if the output blows up.
-    """
-    x0 = complete_state(physics, x0, u.shape[0]).to(u)
-    raw = raw_parameters(physics, names)
-    if not raw and not initial_state:
-        raise ConfigurationError(f"output_jacobian needs at least one parameter name; {physics.display_name} has "
-                         f"{sorted(physics.physical_parameters())}")
+def exact_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.Tensor, u: torch.Tensor,
+                   x0: torch.Tensor, initial_state: bool, hold: str) -> tuple[torch.Tensor, torch.Tensor]:
+    """Output and Jacobian (:meth:`~torchpaml.Solver.jacobian`) of linear physics on a uniform grid, by the
+    sensitivity recurrence of the exact discretisation (module docstring)."""
     h = exact_step(physics, t)
-    if h is not None:  # the same routing as simulate's Auto()
-        return _exact_jacobian(physics, raw, h, t, u, x0.detach(), initial_state, check_hold(hold))
-    solution = solve_shooting(physics, t, u, x0, engine_solver(solver), warm=warm,
-                              hold=hold)
-    module = _Tail(physics, solution, x0, u)
-    raw = {f"physics.{key}": value for key, value in raw.items()}
+    if h is None:
+        raise ConfigurationError(f"the exact path needs linear physics on a uniform grid; {physics.display_name} is "
+                                 "nonlinear or the grid is not uniform. Use Auto() or RK4()")
+    return _exact_jacobian(physics, raw, h, t, u, x0.detach(), initial_state, check_hold(hold))
+
+
+def shooting_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.Tensor, u: torch.Tensor,
+                      x0: torch.Tensor, method: Method, warm: WarmStart | None, initial_state: bool,
+                      hold: str) -> tuple[torch.Tensor, torch.Tensor]:
+    """Output and Jacobian (:meth:`~torchpaml.Solver.jacobian`) by the shooting engine at ``method``'s substeps:
+    one Newton solve, then each column a central difference of single sweeps from the converged starts
+    (module docstring)."""
+    solution = solve_shooting(physics, t, u, x0, method, warm=warm, hold=hold)
+    return difference_jacobian(physics, raw, u, x0, initial_state, lambda x: solution.states(physics, x))
+
+
+def difference_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], u: torch.Tensor, x0: torch.Tensor,
+                        initial_state: bool, trajectory: Callable[[torch.Tensor], torch.Tensor]
+                        ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Output and Jacobian by central differences of ``trajectory`` (x0 (batch, n) -> states (batch, time, n) under
+    the physics' current parameters), one column per raw parameter, then per state with ``initial_state``: what
+    any solver's states give (:meth:`~torchpaml.Solver.jacobian`)."""
+    module = _Run(physics, trajectory, x0, u)
 
     def from_state(x):
-        return physics.output(solution.states(physics, x), u)
+        return physics.output(trajectory(x), u)
 
     columns = []
     for key, value in raw.items():
         def output(r, key=key):
-            return functional_call(module, {key: r}, ())
+            return functional_call(module, {f"physics.{key}": r}, ())
 
         columns.append(_directional(output, value.detach(), torch.ones_like(value)))
     if initial_state:
         for direction in torch.eye(x0.shape[-1], dtype=x0.dtype):
             columns.append(_directional(from_state, x0.detach(), direction.expand_as(x0)))
     with torch.no_grad():
-        y = checked_output(from_state(x0.detach()), t)
+        y = from_state(x0.detach())
     return y, torch.stack(columns, dim=-1)

@@ -47,12 +47,11 @@ central difference to $O(\delta^2)$ as well.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
-
 import torch
 from torch.nn.utils import parametrize
 
-from torchpaml._physics.base import AbstractPhysics
+from torchpaml._simulate.dynamics import Dynamics
+from torchpaml._simulate.method import Method
 from torchpaml._errors import ConfigurationError, SimulationError
 from torchpaml._budget import checkpoint
 from torchpaml._grid import check_hold
@@ -60,8 +59,6 @@ from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.scan import linear_recurrence
 from torchpaml._simulate.warm import WarmStart
 
-if TYPE_CHECKING:  # the solvers build on this engine: imported for annotations only
-    from torchpaml._simulate.solvers import FixedStep
 
 __all__ = ["ShootingSolution", "base_guess", "simulate_shooting", "solve_shooting"]
 #: Relative size of the start perturbations of the central differences (the sweep that feeds gradients).
@@ -89,7 +86,7 @@ TRUST = 0.25
 class _Layout:
     """The record cut into S segments of L steps, padded at the end with steps of length 0."""
 
-    def __init__(self, t: torch.Tensor, u: torch.Tensor, solver: FixedStep, segment: int, hold: str = "foh"):
+    def __init__(self, t: torch.Tensor, u: torch.Tensor, solver: Method, segment: int, hold: str = "foh"):
         batch, N, m = u.shape
         steps = N - 1
         segment = max(segment, math.ceil(batch * steps * 3 / CACHE_ROWS))
@@ -134,7 +131,7 @@ class _Layout:
         self._stages[copies] = list(stages)
         return self._stages[copies]
 
-    def sweep(self, physics: AbstractPhysics, starts: torch.Tensor, copies: int = 1) -> torch.Tensor:
+    def sweep(self, physics: Dynamics, starts: torch.Tensor, copies: int = 1) -> torch.Tensor:
         """starts (copies, batch, S, n) -> states (copies, batch, S, L + 1, n), a view of state-major memory."""
         n = starts.shape[-1]
         states = self.solver.sweep(physics, starts.reshape(-1, n), self.stages(copies))
@@ -158,7 +155,7 @@ class _Sweep:
     gradients; otherwise forward differences (n extra rows, error ~1e-7), enough for Newton's G.
     """
 
-    def __init__(self, physics: AbstractPhysics, layout: _Layout, starts: torch.Tensor, scale: torch.Tensor,
+    def __init__(self, physics: Dynamics, layout: _Layout, starts: torch.Tensor, scale: torch.Tensor,
                  central: bool):
         n = starts.shape[-1]
         self.n, self.central = n, central
@@ -198,7 +195,7 @@ def _trusted(ends: torch.Tensor, updated: torch.Tensor, scale: torch.Tensor, x0:
     return torch.cat([x0[:, None], following], dim=1)
 
 
-def _newton(physics: AbstractPhysics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: int,
+def _newton(physics: Dynamics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: int,
             differentiable: bool, guess: torch.Tensor | None):
     r"""Newton on the segment starts (module docstring), from ``guess``'s states at the starts if it is finite,
     else from $x_0$ held.
@@ -271,7 +268,7 @@ def _settled(gaps: torch.Tensor, ends: torch.Tensor, tol: float) -> int:
     return 1 + (int(unsettled[0]) if len(unsettled) else len(relative))
 
 
-def linear_guess(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, hold: str = "foh"
+def linear_guess(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, hold: str = "foh"
                  ) -> torch.Tensor | None:
     r"""The states (batch, time, n) of the model's linear base (:meth:`~torchpaml.AbstractPhysics.linear_base`:
     the base of physics + effects, the physics under a learned force), by the exact path, driven by the same
@@ -280,7 +277,7 @@ def linear_guess(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0:
     Effects and learned forces are usually corrections to the base, so its trajectory starts Newton near
     the solution: a weak effect then converges in about half the sweeps of a start from $x_0$ held.
     """
-    base = physics.linear_base() if hasattr(physics, "linear_base") else None  # a bare nn.Module has none
+    base = physics.linear_base()
     h = None if base is None else exact_step(base, t)
     if h is None:
         return None
@@ -299,7 +296,7 @@ def _completed(guess: torch.Tensor, x0: torch.Tensor) -> torch.Tensor:
     return torch.cat([guess, held.to(guess)], dim=-1)
 
 
-def base_guess(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
+def base_guess(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor,
                hold: str = "foh") -> torch.Tensor | None:
     """Newton's start without a warm one: :func:`linear_guess` from ``x0`` (batch, n), the states of effects that
     the linear base does not have held at ``x0``; ``None`` without a linear base or a uniform grid."""
@@ -307,9 +304,9 @@ def base_guess(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: t
     return None if guess is None else _completed(guess, x0)
 
 
-def _linear_states(physics: AbstractPhysics, n: int) -> int:
+def _linear_states(physics: Dynamics, n: int) -> int:
     """How many of the ``n`` states the linear base has (:func:`linear_guess`): all, unless effects add their own."""
-    base = physics.linear_base() if hasattr(physics, "linear_base") else None
+    base = physics.linear_base()
     return n if base is None else base.state_dim
 
 
@@ -328,7 +325,7 @@ class ShootingSolution:
         """The converged states (batch, N, n), without gradients: a warm start for a nearby solve."""
         return self.layout.assemble(self.centre.detach())
 
-    def states(self, physics: AbstractPhysics, x0: torch.Tensor) -> torch.Tensor:
+    def states(self, physics: Dynamics, x0: torch.Tensor) -> torch.Tensor:
         r"""The record's states (batch, N, n), differentiable through the implicit-function correction.
 
         One sweep from the converged starts gives $x_{s,k}(\theta)$; the scan of the continuity defects
@@ -345,11 +342,11 @@ class ShootingSolution:
 
 
 def solve_shooting(
-    physics: AbstractPhysics,
+    physics: Dynamics,
     t: torch.Tensor,
     u: torch.Tensor,
     x0: torch.Tensor,
-    solver: FixedStep,
+    solver: Method,
     *,
     tol: float | None = None,
     max_sweeps: int = 16,
@@ -371,8 +368,9 @@ def solve_shooting(
     ``hold``: ``"foh"`` or ``"zoh"`` (module docstring).
     """
     check_hold(hold)
-    if not hasattr(solver, "sweep") or solver.substeps == "auto":
-        raise ConfigurationError(f"the shooting engine needs RK4 or TRBDF2 with a whole number of substeps, got {solver!r}")
+    if solver.substeps == "auto":
+        raise ConfigurationError(f"the shooting engine needs a fixed-step method at a whole number of substeps, got "
+                                 f"{solver!r}")
     tol = tol if tol is not None else GRADIENT_TOL if sensitivities else NEWTON_TOL
     if warm is not None and not isinstance(warm, WarmStart):
         raise ConfigurationError(f"warm must be a torchpaml.WarmStart kept per record (warm=tp.WarmStart()), got "
@@ -396,7 +394,7 @@ def solve_shooting(
             length = layout.L * GROWTH  # fewer, longer segments; one is plain sequential stepping, which always ends
 
 
-def simulate_shooting(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: FixedStep,
+def simulate_shooting(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: Method,
                       warm: WarmStart | None = None, **options) -> torch.Tensor:
     r"""States of ``physics`` on the sample grid by ``solver`` (RK4 or TRBDF2 at fixed substeps), parallel in
     time (module docstring).

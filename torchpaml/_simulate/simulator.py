@@ -1,21 +1,26 @@
-"""One entry point that simulates any physics, by the solver passed in (:mod:`~torchpaml._simulate.solvers`): it checks
-the arguments, and the solver integrates (:meth:`~torchpaml.Solver.integrate`)."""
+"""The entry points that simulate any physics by the solver passed in (:mod:`~torchpaml._simulate.solvers`): they
+check the arguments, and the solver integrates (:meth:`~torchpaml.Solver.integrate`) or differentiates
+(:meth:`~torchpaml.Solver.jacobian`)."""
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import torch
 
 from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._grid import check_hold
-from torchpaml._physics.base import AbstractPhysics, complete_state
+from torchpaml._simulate.blowup import checked_output
+from torchpaml._simulate.dynamics import Dynamics, complete_state
+from torchpaml._simulate.sensitivity import raw_parameters
 from torchpaml._simulate.solvers import Auto, Solver
 from torchpaml._simulate.warm import WarmStart
 
-__all__ = ["simulate"]
+__all__ = ["checked_solver", "output_jacobian", "simulate"]
 
 
 def simulate(
-    physics: AbstractPhysics,
+    physics: Dynamics,
     t: torch.Tensor,
     u: torch.Tensor,
     x0: torch.Tensor | None = None,
@@ -58,9 +63,51 @@ def simulate(
         raise DataError(f"u must have shape (batch, time={t.shape[-1]}, channel), got {tuple(u.shape)}")
     if isinstance(x0, Solver):
         raise ConfigurationError(f"simulate's fourth argument is the initial state; pass the solver by name: solver={x0!r}")
-    solver = Auto() if solver is None else solver
-    if not isinstance(solver, Solver):
-        raise ConfigurationError(f"solver must be one of torchpaml's solvers (Auto(), Exact(), RK4(), TRBDF2(), Dopri5()), "
-                        f"got {solver!r}")
+    solver = checked_solver(solver)
     x0 = complete_state(physics, x0, u.shape[0]).to(u)
     return solver.integrate(physics, t, u, x0, warm=warm, hold=check_hold(hold), knots=knots, blowup=blowup)
+
+
+def checked_solver(solver: Solver | None) -> Solver:
+    """``solver``, or the default ``Auto()``; a clear error for anything that is not a :class:`~torchpaml.Solver`."""
+    if solver is None:
+        return Auto()
+    if not isinstance(solver, Solver):
+        raise ConfigurationError(f"solver must be a torchpaml Solver (Auto(), Exact(), RK4(), TRBDF2(), Dopri5(), or a "
+                                 f"subclass of Solver), got {solver!r}")
+    return solver
+
+
+def output_jacobian(
+    physics: Dynamics, names: Sequence[str], t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor | None = None,
+    warm: WarmStart | None = None, initial_state: bool = False, hold: str = "foh", solver: Solver | None = None
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """Output and its Jacobian in the raw parameters ``names``, by the solver's sensitivities
+    (:meth:`~torchpaml.Solver.jacobian`; :mod:`~torchpaml._simulate.sensitivity`).
+
+    Args:
+        physics: the model.
+        names: physical parameter names, p of them.
+        t: (time,); u: (batch, time, n_input); x0: (batch, n_state), rest if omitted.
+        warm: a :class:`~torchpaml.WarmStart` the caller keeps between calls on the same record (a fit's
+            iterations): the shooting engine stores its converged states in it and starts the next Newton solve
+            from them.
+        initial_state: also differentiate in ``x0``.
+        hold: ``"foh"`` or ``"zoh"``, how the input moves between samples (:func:`~torchpaml.simulate`).
+        solver: the solver at whose resolution to differentiate (:meth:`~torchpaml.Solver.states`): a fit's
+            ``PhysicsEstimate.solver``, or ``Auto(start=...)``; default ``Auto()`` (exact for linear physics on a
+            uniform grid, else RK4 at one substep per sample).
+
+    Returns:
+        y (batch, time, n_output) and J (batch, time, n_output, p), or (..., p + n_state) with
+        ``initial_state``: the parameters' columns first. Raises
+        :class:`~torchpaml.SimulationError` if the output blows up.
+    """
+    x0 = complete_state(physics, x0, u.shape[0]).to(u)
+    raw = raw_parameters(physics, names)
+    if not raw and not initial_state:
+        raise ConfigurationError(f"output_jacobian needs at least one parameter name; {physics.display_name} has "
+                                 f"{sorted(physics.physical_parameters())}")
+    y, J = checked_solver(solver).jacobian(physics, raw, t, u, x0, warm=warm, hold=check_hold(hold),
+                                     initial_state=initial_state)
+    return checked_output(y, t), J

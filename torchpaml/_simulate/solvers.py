@@ -16,10 +16,16 @@ multiple-shooting engine (:mod:`~torchpaml._simulate.shooting`), each by its own
 ``rtol`` of its size (:mod:`~torchpaml._simulate.step_control`); a number fixes them, unchecked. A fit returns the
 fixed solver its step check resolved (``PhysicsEstimate.solver``); pass it on to simulate the fitted model as it
 was fitted (``simulate(physics, t, u, solver=fit.solver)``), or as ``Auto(start=fit.solver)`` to a fit of a model
-built on it, whose step check then starts there.
+built on it (whose step check then starts there) and to the probes of such a model (which simulate at its
+resolution, exactly where the model is linear).
 
-Each solver integrates (:meth:`Solver.integrate`); :func:`~torchpaml.simulate` checks the arguments and the output
-and only drives it. Solvers are frozen values: compare them, print them, keep them in a config.
+A solver owns every way of integrating: forward to its tolerance (:meth:`Solver.integrate`, what
+:func:`~torchpaml.simulate` drives), the states at its current resolution (:meth:`Solver.states`), the output's
+Jacobian in the parameters (:meth:`Solver.jacobian`, what fits use) and the step check's moves
+(:meth:`Solver.refined`, :meth:`Solver.stable`, :meth:`Solver.fallback`). A new solver is one class: subclass
+:class:`FixedStep` with a ``sweep`` (a one-step method in the parallel engine), or :class:`Solver` with ``integrate``
+and ``states`` (its Jacobian then comes by central differences of its states). ``Auto`` is the only place where RK4
+gives way to TR-BDF2. Solvers are frozen values: compare them, print them, keep them in a config.
 """
 
 from __future__ import annotations
@@ -31,19 +37,21 @@ from typing import ClassVar, Literal
 
 import torch
 
-from torchpaml._physics.base import AbstractPhysics
 from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._grid import uniform_step
 from torchpaml._simulate.blowup import checked_output
+from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.fixed_step import simulate_fixed_step
 from torchpaml._simulate.lti import exact_step, simulate_lti
 from torchpaml._simulate.ode import simulate_ode
+from torchpaml._simulate.sensitivity import difference_jacobian, exact_jacobian, shooting_jacobian
+from torchpaml._simulate.shooting import simulate_shooting
+from torchpaml._simulate.step_control import MAX_SUBSTEPS, next_substeps
 from torchpaml._simulate.steps import GAMMA, RK4_COEFFICIENTS, TRBDF2_COEFFICIENTS, rk4_sweep, trbdf2_sweep
-from torchpaml._simulate.stiffness import RK4_STABILITY, STIFF_SUBSTEPS
+from torchpaml._simulate.stiffness import RK4_STABILITY, STIFF_SUBSTEPS, stable_substeps
 from torchpaml._simulate.warm import WarmStart
 
-__all__ = ["Auto", "Dopri5", "Exact", "FixedStep", "RK4", "SEGMENT_STEPS", "Solver", "TRBDF2", "continued",
-           "engine_solver"]
+__all__ = ["Auto", "Dopri5", "Exact", "FixedStep", "RK4", "SEGMENT_STEPS", "Solver", "TRBDF2"]
 
 #: Default segment length L (steps) of the shooting engine. A sweep costs L dispatch-bound steps plus arithmetic
 #: on every sample, which does not depend on L; 2 is the fastest of 1, 2, 4, 8 and 16 for simulations and
@@ -54,15 +62,70 @@ STEP_RTOL = 1e-3
 
 
 class Solver(ABC):
-    """Base of the solvers (module docstring): each integrates the physics by its own method."""
+    """Base of the solvers (module docstring): each integrates the physics by its own method.
+
+    Attributes:
+        substeps: steps per sample interval where the solver has a fixed step (``None``: adaptive, or a policy).
+    """
+
+    substeps = None
+    #: $|h\lambda|$ up to which the solver's step is stable; ``None``: no limit (implicit, adaptive or exact).
+    stability = None
 
     @abstractmethod
-    def integrate(self, physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, *,
-                  warm: WarmStart | None,
-                  hold: str, knots: torch.Tensor | None, blowup: float) -> torch.Tensor:
+    def integrate(self, physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, *,
+                  warm: WarmStart | None = None, hold: str = "foh", knots: torch.Tensor | None = None,
+                  blowup: float = 1e8) -> torch.Tensor:
         """The output (batch, time, n_output) of ``physics`` from ``x0`` (batch, n_state) driven by ``u`` (batch,
-        time, n_input) on the grid ``t`` (time,), checked against ``blowup`` (arguments of
-        :func:`~torchpaml.simulate`, which checks them first)."""
+        time, n_input) on the grid ``t`` (time,), to the solver's tolerance, checked against ``blowup`` (arguments
+        of :func:`~torchpaml.simulate`, which checks them first)."""
+
+    @abstractmethod
+    def states(self, physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, *,
+               warm: WarmStart | None = None, hold: str = "foh") -> torch.Tensor:
+        """The states (batch, time, n_state) at the solver's current resolution, without a tolerance search: what a
+        fit evaluates and a probe of a fitted model simulates. Differentiable when grad mode is on."""
+
+    def jacobian(self, physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.Tensor, u: torch.Tensor,
+                 x0: torch.Tensor, *, warm: WarmStart | None = None, hold: str = "foh",
+                 initial_state: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+        """The output (batch, time, n_output) at :meth:`states`' resolution and its Jacobian (..., p [+ n_state]) in
+        the raw parameters ``raw`` (:func:`~torchpaml._simulate.sensitivity.raw_parameters`), and in ``x0`` with
+        ``initial_state`` (:func:`~torchpaml._simulate.simulator.output_jacobian`). Here by central differences of
+        :meth:`states`; the built-in solvers override it with their own sensitivities."""
+        return difference_jacobian(physics, raw, u, x0, initial_state,
+                                   lambda x: self.states(physics, t, u, x, warm=warm, hold=hold))
+
+    def stepping(self) -> FixedStep | None:
+        """The fixed-step method this solver steps with, at its resolution (what ``Auto(start=solver)`` continues
+        from); ``None`` for an exact or adaptive one."""
+        return None
+
+    def simulating(self, physics: Dynamics, t: torch.Tensor) -> Solver:
+        """The solver that simulates ``physics`` on ``t`` at this one's resolution (what a fitted model reports as
+        ``PhysicsEstimate.solver``): itself, unless it is a policy (``Auto``)."""
+        return self
+
+    def halved(self) -> Solver | None:
+        """This solver at half its step (the step check's comparison, :mod:`~torchpaml._fit.resolution`); ``None``
+        where it has no step to halve (an adaptive or exact solver: no step check)."""
+        return None
+
+    def refined(self, gap: float, target: float) -> Solver | None:
+        """This solver at the finer step predicted to bring the step check's ``gap`` to ``target``; ``None`` where
+        that is beyond :data:`~torchpaml._simulate.step_control.MAX_SUBSTEPS` or it has no step."""
+        return None
+
+    def stable(self, sigma: float, most: int = MAX_SUBSTEPS) -> Solver:
+        """This solver at a step that is stable for the stiffness ``sigma``
+        (:func:`~torchpaml._simulate.stiffness.stiffness`); itself where :attr:`stability` is ``None``. Raises
+        :class:`~torchpaml.ResolutionError` beyond ``most`` substeps."""
+        return self
+
+    def fallback(self) -> Solver | None:
+        """The solver to go on with where this one cannot resolve a fit (a :class:`~torchpaml.ResolutionError`);
+        ``None``: the error stands. Only ``Auto`` has one: TR-BDF2 where its explicit method is too stiff."""
+        return None
 
 
 def _check_rtol(rtol: float) -> None:
@@ -73,16 +136,30 @@ def _check_rtol(rtol: float) -> None:
 @dataclass(frozen=True)
 class Exact(Solver):
     """The exact zero- or first-order-hold discretisation of linear physics on a uniform grid
-    (:func:`~torchpaml._simulate.lti.simulate_lti`); raises ``ValueError`` for nonlinear physics."""
+    (:func:`~torchpaml._simulate.lti.simulate_lti`); raises :class:`~torchpaml.ConfigurationError` for nonlinear
+    physics."""
 
     #: One exact step per sample interval.
     substeps: ClassVar[int] = 1
 
-    def integrate(self, physics: AbstractPhysics, t, u, x0, *, warm, hold, knots, blowup):
+    def _matrices(self, physics: Dynamics):
         matrices = physics.state_space()
         if matrices is None:
-            raise ConfigurationError(f"solver=Exact() needs linear physics; {physics.display_name} is nonlinear. Use RK4()")
-        return checked_output(simulate_lti(*matrices, uniform_step(t), u, x0, hold), t, blowup)
+            raise ConfigurationError(f"solver=Exact() needs linear physics; {physics.display_name} is nonlinear. Use "
+                                     "RK4()")
+        return matrices
+
+    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=1e8):
+        return checked_output(simulate_lti(*self._matrices(physics), uniform_step(t), u, x0, hold), t, blowup)
+
+    def states(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh"):
+        A, B, _, _ = self._matrices(physics)
+        n, m = B.shape
+        return simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, m, dtype=A.dtype), uniform_step(t), u,
+                            x0, hold)
+
+    def jacobian(self, physics: Dynamics, raw, t, u, x0, *, warm=None, hold="foh", initial_state=False):
+        return exact_jacobian(physics, raw, t, u, x0, initial_state, hold)
 
 
 @dataclass(frozen=True)
@@ -123,12 +200,37 @@ class FixedStep(Solver):
         return dataclasses.replace(self, substeps=substeps)
 
     @abstractmethod
-    def sweep(self, physics: AbstractPhysics, x: torch.Tensor, stages) -> torch.Tensor:
+    def sweep(self, physics: Dynamics, x: torch.Tensor, stages) -> torch.Tensor:
         """One step of the method per stage, for the rows of ``x`` (rows, n): the states at the step boundaries,
         (n, L + 1, rows) (:mod:`~torchpaml._simulate.steps`)."""
 
-    def integrate(self, physics: AbstractPhysics, t, u, x0, *, warm, hold, knots, blowup):
+    @property
+    def resolution(self) -> int:
+        """The substeps :meth:`states` steps at: ``substeps``, one where they are ``"auto"``."""
+        return 1 if self.substeps == "auto" else self.substeps
+
+    def stepping(self) -> FixedStep:
+        return self.at(self.resolution)
+
+    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=1e8):
         return simulate_fixed_step(physics, t, u, x0, self, warm, hold, blowup)
+
+    def states(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh"):
+        return simulate_shooting(physics, t, u, x0, self.stepping(), warm, hold=hold)
+
+    def jacobian(self, physics: Dynamics, raw, t, u, x0, *, warm=None, hold="foh", initial_state=False):
+        return shooting_jacobian(physics, raw, t, u, x0, self.stepping(), warm, initial_state, hold)
+
+    def halved(self) -> FixedStep:
+        return self.at(2 * self.resolution)
+
+    def refined(self, gap: float, target: float) -> FixedStep | None:
+        following = next_substeps(self.resolution, gap, target, self.order)
+        return None if following > MAX_SUBSTEPS else self.at(following)
+
+    def stable(self, sigma: float, most: int = MAX_SUBSTEPS) -> FixedStep:
+        from_here = self.stepping()
+        return from_here if self.stability is None else self.at(stable_substeps(from_here, sigma, most))
 
 
 @dataclass(frozen=True)
@@ -141,7 +243,7 @@ class RK4(FixedStep):
     coefficients: ClassVar[tuple[float, ...]] = RK4_COEFFICIENTS
     stability: ClassVar[float | None] = RK4_STABILITY
 
-    def sweep(self, physics: AbstractPhysics, x, stages):
+    def sweep(self, physics: Dynamics, x, stages):
         return rk4_sweep(physics, x, stages, self.substeps)
 
 
@@ -165,7 +267,7 @@ class TRBDF2(FixedStep):
     coefficients: ClassVar[tuple[float, ...]] = TRBDF2_COEFFICIENTS
     stability: ClassVar[float | None] = None
 
-    def sweep(self, physics: AbstractPhysics, x, stages):
+    def sweep(self, physics: Dynamics, x, stages):
         return trbdf2_sweep(physics, x, stages, self.substeps)
 
 
@@ -187,64 +289,93 @@ class Dopri5(Solver):
     def __post_init__(self):
         _check_rtol(self.rtol)
 
-    def integrate(self, physics: AbstractPhysics, t, u, x0, *, warm, hold, knots, blowup):
+    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=1e8):
+        return checked_output(physics.output(self._states(physics, t, u, x0, hold, knots), u), t, blowup)
+
+    def states(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh"):
+        return self._states(physics, t, u, x0, hold, None)
+
+    def _states(self, physics: Dynamics, t, u, x0, hold: str, knots: torch.Tensor | None) -> torch.Tensor:
         if hold == "zoh":
-            raise ConfigurationError("hold='zoh' is simulated by the exact path and by the fixed-step solvers, not by Dopri5, "
-                             "whose interpolant is first-order; use solver=RK4() or the default")
-        states = simulate_ode(physics, t, u, x0, method="dopri5", rtol=self.rtol, atol=self.atol,
-                              adjoint=self.adjoint, max_num_steps=self.max_num_steps, knots=knots)
-        return checked_output(physics.output(states, u), t, blowup)
+            raise ConfigurationError("hold='zoh' is simulated by the exact path and by the fixed-step solvers, not by "
+                                     "Dopri5, whose interpolant is first-order; use solver=RK4() or the default")
+        return simulate_ode(physics, t, u, x0, method="dopri5", rtol=self.rtol, atol=self.atol, adjoint=self.adjoint,
+                            max_num_steps=self.max_num_steps, knots=knots)
 
 
 @dataclass(frozen=True)
 class Auto(Solver):
-    """The default (module docstring): ``Exact`` where it applies, else ``RK4(rtol=rtol)``, else, where RK4 cannot
-    reach ``rtol`` within :data:`~torchpaml._simulate.stiffness.STIFF_SUBSTEPS` substeps, ``TRBDF2(rtol=rtol)``.
+    """The default (module docstring): ``Exact`` where it applies, else the explicit method to ``rtol`` (``RK4``, or
+    the method of ``start``), else, where it cannot reach ``rtol`` within
+    :data:`~torchpaml._simulate.stiffness.STIFF_SUBSTEPS` substeps, ``TRBDF2(rtol=rtol)``.
 
     Attributes:
         rtol: the output's relative tolerance (the step doubling's).
-        start: a fixed-step solver whose substeps the step doubling of the same method starts from (a previous
-            fit's ``PhysicsEstimate.solver``, :func:`continued`); it changes the work, not the result's tolerance.
+        start: the solver a model was fitted with (a fit's ``PhysicsEstimate.solver``), which a model built on it
+            continues from: where it is a fixed-step method (a :class:`FixedStep`: RK4, TR-BDF2, a user's own), its
+            method and substeps are where the step doubling starts and the resolution of :meth:`states` and
+            :meth:`jacobian`; otherwise (``None``, ``Exact()``) RK4 from one substep. It changes the work, not the
+            result's tolerance.
     """
 
     rtol: float = STEP_RTOL
-    start: FixedStep | None = None
+    start: Solver | None = None
 
     def __post_init__(self):
         _check_rtol(self.rtol)
+        if self.start is not None and not isinstance(self.start, Solver):
+            raise ConfigurationError(f"Auto's start is a solver (a fit's PhysicsEstimate.solver), got {self.start!r}")
 
-    def _start(self, method: FixedStep) -> int:
-        own = self.start
-        return own.substeps if type(own) is type(method) and own.substeps != "auto" else 1
+    def stepping(self) -> FixedStep:
+        """The fixed-step method and substeps the step doubling starts from: ``start``'s, else RK4 at one."""
+        stepping = None if self.start is None else self.start.stepping()
+        return RK4(substeps=1) if stepping is None else stepping
 
-    def integrate(self, physics: AbstractPhysics, t, u, x0, *, warm, hold, knots, blowup):
+    def simulating(self, physics: Dynamics, t: torch.Tensor) -> Solver:
+        return Exact() if exact_step(physics, t) is not None else self.stepping()
+
+    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=1e8):
         if exact_step(physics, t) is not None:
-            return Exact().integrate(physics, t, u, x0, warm=warm, hold=hold, knots=knots, blowup=blowup)
-        explicit, implicit = RK4(rtol=self.rtol), TRBDF2(rtol=self.rtol)
+            return Exact().integrate(physics, t, u, x0, hold=hold, blowup=blowup)
+        method = self.stepping()
+        tolerant = dataclasses.replace(method, substeps="auto", rtol=self.rtol)
+        stiff = self.fallback()
         try:
-            return simulate_fixed_step(physics, t, u, x0, explicit, warm, hold, blowup, most_stable=STIFF_SUBSTEPS,
-                                       start=self._start(explicit))
-        except (ResolutionError, SimulationError) as error:  # too stiff for RK4's step: the implicit method
+            return simulate_fixed_step(physics, t, u, x0, tolerant, warm, hold, blowup,
+                                       most_stable=MAX_SUBSTEPS if stiff is None else STIFF_SUBSTEPS,
+                                       start=method.substeps)
+        except (ResolutionError, SimulationError) as error:  # too stiff for the explicit step: the implicit method
+            if stiff is None:
+                raise
             try:
-                return simulate_fixed_step(physics, t, u, x0, implicit, WarmStart(), hold, blowup,
-                                           start=self._start(implicit))
+                implicit = dataclasses.replace(stiff.stepping(), substeps="auto", rtol=self.rtol)
+                return simulate_fixed_step(physics, t, u, x0, implicit, WarmStart(), hold, blowup)
             except (ResolutionError, SimulationError):
                 raise error from None
 
+    def states(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh"):
+        return self.simulating(physics, t).states(physics, t, u, x0, warm=warm, hold=hold)
 
-def engine_solver(solver: Solver | None) -> FixedStep:
-    """The fixed-step solver with which the shooting engine simulates a model where ``solver`` says how it was
-    fitted (the probes, the states of a fitted model): ``solver`` where it is RK4 or TR-BDF2 at whole substeps, an
-    ``Auto``'s ``start``, else RK4 at one substep per sample."""
-    if isinstance(solver, Auto):
-        solver = solver.start
-    return solver if isinstance(solver, FixedStep) and solver.substeps != "auto" else RK4(substeps=1)
+    def jacobian(self, physics: Dynamics, raw, t, u, x0, *, warm=None, hold="foh", initial_state=False):
+        return self.simulating(physics, t).jacobian(physics, raw, t, u, x0, warm=warm, hold=hold,
+                                                    initial_state=initial_state)
 
+    @property
+    def stability(self) -> float | None:
+        return self.stepping().stability
 
-def continued(solver: Solver | None) -> Auto:
-    """The solver of a fit of a model built on one fitted with ``solver`` (``physics + effect``, a learned force, a
-    freed shape): the default ``Auto()``, its step check started from ``solver`` where that is a fixed-step one (the
-    exact path of a linear physics does not apply to the nonlinear model)."""
-    if isinstance(solver, Auto):
-        return solver
-    return Auto(start=solver if isinstance(solver, FixedStep) else None)
+    def halved(self) -> Auto:
+        return dataclasses.replace(self, start=self.stepping().halved())
+
+    def refined(self, gap: float, target: float) -> Auto | None:
+        finer = self.stepping().refined(gap, target)
+        return None if finer is None else dataclasses.replace(self, start=finer)
+
+    def stable(self, sigma: float, most: int = MAX_SUBSTEPS) -> Auto:
+        return dataclasses.replace(self, start=self.stepping().stable(sigma, most))
+
+    def fallback(self) -> Auto | None:
+        method = self.stepping()
+        if method.stability is None:  # already implicit
+            return None
+        return dataclasses.replace(self, start=TRBDF2(substeps=1, segment=method.segment))

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import torch
 
-from torchpaml._physics.base import AbstractPhysics
+from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._errors import SimulationError
 __all__ = ["GAMMA", "RK4_COEFFICIENTS", "TRBDF2_COEFFICIENTS", "rate_and_jacobian", "rk4_sweep", "trbdf2_sweep"]
 
@@ -54,7 +54,7 @@ def _state_major(x: torch.Tensor) -> torch.Tensor:
     return x.t().contiguous().t()
 
 
-def rk4_sweep(physics: AbstractPhysics, x: torch.Tensor, stages, substeps: int) -> torch.Tensor:
+def rk4_sweep(physics: Dynamics, x: torch.Tensor, stages, substeps: int) -> torch.Tensor:
     """Integrate the rows of ``x`` (rows, n) through the steps of ``stages`` by RK4 at ``substeps``.
 
     Returns:
@@ -141,7 +141,7 @@ def _stage(f, t: torch.Tensor, u: torch.Tensor, a: torch.Tensor, dh: torch.Tenso
     return z - torch.linalg.solve(M, z - a - dh * f(t, z, u))
 
 
-def trbdf2_sweep(physics: AbstractPhysics, x: torch.Tensor, stages, substeps: int) -> torch.Tensor:
+def trbdf2_sweep(physics: Dynamics, x: torch.Tensor, stages, substeps: int) -> torch.Tensor:
     """Integrate the rows of ``x`` (rows, n) through the steps of ``stages`` by TR-BDF2 at ``substeps``; returns as
     :func:`rk4_sweep`."""
     x = _state_major(x)

@@ -18,16 +18,13 @@ L-stable TR-BDF2 (no such limit) takes over where the solver is the default.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
-
 import torch
 
-from torchpaml._physics.base import AbstractPhysics
+from torchpaml._simulate.dynamics import Dynamics
+from torchpaml._simulate.method import Method
 from torchpaml._errors import ResolutionError
 from torchpaml._simulate.step_control import MAX_SUBSTEPS
 
-if TYPE_CHECKING:
-    from torchpaml._simulate.solvers import FixedStep
 
 __all__ = ["RK4_STABILITY", "STIFF_SUBSTEPS", "stable_substeps", "stiffness"]
 
@@ -44,7 +41,7 @@ DIFFERENCE = 1e-7
 RK4_STABILITY = 2.5
 
 
-def stiffness(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, states: torch.Tensor) -> float:
+def stiffness(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, states: torch.Tensor) -> float:
     r"""$\sigma = \max_k h_k\,\rho(J_k)$ (module docstring) over the samples of ``states`` (batch, time, n), driven by
     ``u`` (batch, time, n_input) on the grid ``t`` (time,), at most :data:`POINTS` of them evenly spaced, as its
     :data:`QUANTILE` (a square root at an empty tank is infinitely steep at one sample, which does not make the
@@ -66,7 +63,7 @@ def stiffness(physics: AbstractPhysics, t: torch.Tensor, u: torch.Tensor, states
     return float(torch.quantile(radius * steps, QUANTILE))
 
 
-def stable_substeps(solver: FixedStep, sigma: float, most: int = MAX_SUBSTEPS) -> int:
+def stable_substeps(solver: Method, sigma: float, most: int = MAX_SUBSTEPS) -> int:
     """The substeps of ``solver`` (whole) or the least power-of-two multiple of them at which its step is stable
     for stiffness ``sigma``; the substeps themselves for an implicit method. Raises
     :class:`~torchpaml.ResolutionError` where that is more than ``most``: the physics is stiff for the
