@@ -151,12 +151,18 @@ def copied_with_own_parametrizations(module: nn.Module, memo: dict) -> nn.Module
     return replica
 
 
+def declared(module: nn.Module) -> dict:
+    """``{name: PhysicalParameter}`` declared on ``module`` itself (:func:`register_parameters`); empty for a module
+    that declares none."""
+    return getattr(module, "_physical", {})
+
+
 def describe_parameters(module: nn.Module, prefix: str = "") -> list[dict]:
     """Rows ``{name, value, unit, constraint, learnable, meaning}`` (and ``physical``, where declared) for every
     physical parameter below ``module``; :func:`with_uncertainty` adds a fit's."""
     rows = []
     for path, sub in module.named_modules():
-        for name, decl in getattr(sub, "_physical", {}).items():
+        for name, decl in declared(sub).items():
             raw = getattr(sub.parametrizations, name).original
             row = {
                 "name": prefix + (f"{path}.{name}" if path else name),

@@ -42,6 +42,8 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
 
 from __future__ import annotations
 
+import dataclasses
+
 import copy
 import logging
 import math
@@ -112,8 +114,10 @@ def rank_missing_effects(
             undecided (``EffectEvidence.undecided``).
         fit_budget: after a refit (``refitted``), the fit of ``physics`` may take this many times that refit.
         deadline: a ``time.perf_counter()`` time by which every fit must end (the diagnosis' ``budget``).
-        solver: the solver ``physics`` was last fitted with (``PhysicsEstimate.solver``), where the step checks of
-            its fits start (``Auto(start=solver)``); default ``Auto()``.
+        solver: the solver ``physics`` was last fitted with (``PhysicsEstimate.solver``), or one to fit with, where
+            the step checks of its fits start (``Auto(start=solver)``): a fixed-step method (RK4, TR-BDF2, a user's
+            own) is the method of every refit and probe, also where the rung itself takes the exact path; default
+            ``Auto()``.
         refitted: the refit that ``physics`` comes from (a ladder's next rung): the fit of ``physics`` may take
             ``fit_budget`` times that refit, and keeps the refit's parameters over it (``Ranking.fit_over_budget``).
             Without it, the fit runs to the ``deadline``.
@@ -129,6 +133,8 @@ def rank_missing_effects(
     limits = Budget(base.display_name, refit_budget * seconds, refit_budget * fit.evaluations, end)
     if not candidates:
         return Ranking(baseline, [], rule, skipped, initial_state, over, seconds)
+    if solver is not None and fit.solver.stepping() is None:  # a rung on the exact path: the effects step by solver
+        fit = dataclasses.replace(fit, solver=solver)
     log.info("scoring %d candidates to first order", len(candidates))
     entries, extended_models = _scored(base, candidates, train, fit, probe)
     by_score = sorted(entries, key=lambda e: -e.score)

@@ -41,8 +41,8 @@ from torch.nn.utils import parametrize
 from torchpaml._errors import ConfigurationError
 from torchpaml._simulate.dynamics import complete_state
 from torchpaml._simulate.simulator import simulate
-from torchpaml._parameters import (Interval, copied_with_own_parametrizations, describe_parameters, format_table,
-                                  with_uncertainty)
+from torchpaml._parameters import (Interval, copied_with_own_parametrizations, declared, describe_parameters,
+                                  format_table, with_uncertainty)
 
 __all__ = ["AbstractPhysics", "SecondOrderPhysics", "complete_state", "state_vector"]
 
@@ -151,7 +151,7 @@ class AbstractPhysics(nn.Module):
         """Set parameters in physical units, checking their constraints; returns ``self``."""
         for name, value in values.items():
             owner, leaf = self._owner(name)
-            if leaf not in getattr(owner, "_physical", {}):
+            if leaf not in declared(owner):
                 raise ConfigurationError(f"{self.display_name} has no physical parameter {name!r}")
             owner._physical[leaf].constraint.check(name, float(value))
             with torch.no_grad():
@@ -165,7 +165,7 @@ class AbstractPhysics(nn.Module):
         :class:`~torchpaml.Interval` (gradient-based fits then cannot leave the interval).
         """
         owner, leaf = self._owner(name)
-        if leaf not in getattr(owner, "_physical", {}):
+        if leaf not in declared(owner):
             raise ConfigurationError(f"{self.display_name} has no physical parameter {name!r}")
         value = float(getattr(owner, leaf).detach())
         interval = Interval(lower, upper)

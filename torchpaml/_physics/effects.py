@@ -120,7 +120,7 @@ class PendulumRestoring(AbstractEffect):
 
     def applies_to(self, physics: AbstractPhysics):
         reason = super().applies_to(physics)
-        if reason is None and not hasattr(physics, "omega0"):
+        if reason is None and "omega0" not in physics.physical_parameters():
             return f"pendulum_restoring scales with the base's omega0, and {physics.display_name} has none"
         return reason
 

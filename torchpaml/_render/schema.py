@@ -51,7 +51,7 @@ def ladder_to_dicts(ladder: Ladder) -> list[dict]:
 
 def _solver(solver) -> dict:
     """``{solver, substeps}`` of a rung's model: ``{"Auto", None}`` for a model that no fit resolved."""
-    return {"solver": type(solver).__name__, "substeps": getattr(solver, "substeps", None)}
+    return {"solver": type(solver).__name__, "substeps": solver.substeps}
 
 
 def hybrid_to_dict(hybrid: HybridScore) -> dict:

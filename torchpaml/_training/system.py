@@ -272,7 +272,7 @@ class HybridSystem(L.LightningModule):
         r"""$|c_0|$ and $|c_1|$ per identified parameter of the *fitted* residual on the witness input."""
         amplitude, omega, duration = self.witness
         if amplitude is None:
-            amplitude = getattr(self.residual, "alpha", None) or self._training_amplitude()
+            amplitude = self.residual.alpha or self._training_amplitude()
         hybrid = Hybrid(self.physics, self.residual)
 
         def fitted_residual(generator):
