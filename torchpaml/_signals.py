@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 from torchpaml._errors import ConfigurationError
 from scipy import signal as sps
 
-__all__ = ["time_grid", "sine", "cosine", "pseudorandom", "pseudorandom_knots", "multisine", "chirp"]
+__all__ = ["amplitude_spectrum", "chirp", "cosine", "dominant_frequency", "multisine", "pseudorandom",
+           "pseudorandom_knots", "sine", "time_grid"]
 
 
 def time_grid(duration: float, dt: float) -> torch.Tensor:
@@ -79,3 +81,17 @@ def chirp(t: torch.Tensor, amplitude: float, f0: float, f1: float, method: str =
     r"""Swept sine $\alpha\cos(\phi(t))$ from ``f0`` Hz at $t_0$ to ``f1`` Hz at $t_{N-1}$ (``scipy.signal.chirp``)."""
     u = sps.chirp(t.numpy(), f0=f0, t1=float(t[-1]), f1=f1, method=method)
     return (amplitude * torch.from_numpy(u))[None, :, None]
+
+
+def amplitude_spectrum(t, signal) -> tuple[np.ndarray, np.ndarray]:
+    r"""The one-sided amplitude spectrum of ``signal`` (time,) on the uniform grid ``t`` (time,): the frequencies
+    $\omega_k$ in rad/s and $2|X_k|/N$ (a sine of amplitude $a$ on a bin shows $a$)."""
+    t, x = np.asarray(t, dtype=float), np.asarray(signal, dtype=float)
+    return 2 * math.pi * np.fft.rfftfreq(len(x), d=float(t[1] - t[0])), 2 * np.abs(np.fft.rfft(x)) / len(x)
+
+
+def dominant_frequency(t, u) -> float:
+    """The frequency (rad/s) of the largest non-DC line of ``u``'s amplitude spectrum (``u`` (time,))."""
+    u = np.asarray(u, dtype=float)
+    frequencies, amplitude = amplitude_spectrum(t, u - u.mean())
+    return float(frequencies[1 + int(np.argmax(amplitude[1:]))])

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["REACH", "ParameterSpread", "parameter_spread"]
+__all__ = ["REACH", "ParameterSpread", "fleet_spread", "parameter_spread"]
 
 #: How many combined standard deviations from the median make a unit stand out.
 REACH = 3.0
@@ -64,3 +64,9 @@ def parameter_spread(parameters: dict[str, dict[str, float]],
         outliers = [u for u, far in zip(units, np.abs(values - median) > reach, strict=True) if far]
         spreads.append(ParameterSpread(name, units, values, stds, median, sigma, outliers))
     return spreads
+
+
+def fleet_spread(fleet: dict) -> list[ParameterSpread]:
+    """:func:`parameter_spread` of the healthy units (no ``error``) of a fleet's ``fleet.json`` content."""
+    healthy = [row for row in fleet["units"] if row["error"] is None]
+    return parameter_spread({r["unit"]: r["parameters"] for r in healthy}, {r["unit"]: r["uncertainty"] for r in healthy})

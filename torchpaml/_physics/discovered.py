@@ -20,6 +20,8 @@ effect)::
 
 from __future__ import annotations
 
+import math
+
 import re
 from collections.abc import Mapping, Sequence
 
@@ -123,6 +125,13 @@ class DiscoveredForce(AbstractEffect):
                 term = re.sub(rf"\b{width}\b", f"{values[width]:.4g}", term)
             rows.append((term, values["gain"] * values[name], equation))
         return rows
+
+    def coefficient_errors(self, uncertainty: dict[str, float]) -> list[float]:
+        """The standard error of each term's coefficient $g c_i$ (:meth:`terms_and_coefficients`) from a fit's
+        standard errors of $c_i$ (``uncertainty``, keyed by the parameters' names in the model, e.g.
+        ``discovered.c_v3``), $|g|$ times it (the gain fixed); ``inf`` where the fit does not determine one."""
+        gain = abs(self.values()["gain"])
+        return [gain * uncertainty.get(f"{self.name}.{name}", math.inf) for name in self.parameter_names]
 
     def expression(self) -> str | dict[str, str]:
         """The terms as one sympy-style string, e.g. ``"-0.4894*v**3"`` (``"0"`` without terms); on several

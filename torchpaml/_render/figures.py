@@ -9,12 +9,13 @@ pyplot state), so they are safe in a headless training process.
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 from matplotlib.figure import Figure
+
+from torchpaml._signals import amplitude_spectrum
 
 if TYPE_CHECKING:
     from torchpaml._diagnostics import (
@@ -35,7 +36,6 @@ __all__ = [
     "comparison_figure",
     "diagnosis_figures",
     "discovery_figure",
-    "dominant_frequency",
     "fleet_figure",
     "ladder_figure",
     "overlay_figure",
@@ -77,22 +77,13 @@ def residual_figure(t, actual, predicted, title: str = "") -> Figure:
     return fig
 
 
-def dominant_frequency(t, u) -> float:
-    """The frequency (rad/s) of the largest non-DC line of ``u``'s amplitude spectrum."""
-    t, u = _numpy(t), _numpy(u)
-    spectrum = np.abs(np.fft.rfft(u - u.mean()))
-    frequencies = 2 * math.pi * np.fft.rfftfreq(len(u), d=float(t[1] - t[0]))
-    return float(frequencies[1 + int(np.argmax(spectrum[1:]))])
-
-
 def spectrum_figure(t, residual, drive: float, harmonics: int = 15, title: str = "") -> Figure:
     r"""Amplitude spectrum of a residual, with the harmonics $k\omega$ of the drive marked (odd solid, even dashed).
 
-    ``drive`` is the drive's fundamental in rad/s (see :func:`dominant_frequency`).
+    ``drive`` is the drive's fundamental in rad/s (see :func:`~torchpaml._signals.dominant_frequency`); the spectrum
+    is :func:`~torchpaml._signals.amplitude_spectrum`'s.
     """
-    t, r = _numpy(t), _numpy(residual)
-    amplitude = 2 * np.abs(np.fft.rfft(r)) / len(r)
-    frequencies = 2 * math.pi * np.fft.rfftfreq(len(r), d=float(t[1] - t[0]))
+    frequencies, amplitude = amplitude_spectrum(_numpy(t), _numpy(residual))
     top = min(frequencies[-1], (harmonics + 0.5) * drive)
     keep = frequencies <= top
     fig = Figure(figsize=(9, 3.2), tight_layout=True)

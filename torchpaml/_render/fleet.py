@@ -11,7 +11,7 @@ from __future__ import annotations
 import html
 from pathlib import Path
 
-from torchpaml._diagnostics.spread import REACH, parameter_spread
+from torchpaml._diagnostics.spread import REACH, ParameterSpread
 from torchpaml._render.figures import fleet_figure
 
 __all__ = ["severity_order", "write_fleet_report"]
@@ -32,11 +32,9 @@ def _pct(value: float | None) -> str:
     return "—" if value is None else f"{100 * value:.2f}"
 
 
-def write_fleet_report(fleet: dict, out: Path) -> Path:
-    """Write ``fleet.html`` and ``fleet_parameters.png`` into ``out`` from the content of ``fleet.json``."""
-    healthy = [row for row in fleet["units"] if row["error"] is None]
-    spreads = parameter_spread({r["unit"]: r["parameters"] for r in healthy},
-                               {r["unit"]: r["uncertainty"] for r in healthy})
+def write_fleet_report(fleet: dict, spreads: list[ParameterSpread], out: Path) -> Path:
+    """Write ``fleet.html`` and ``fleet_parameters.png`` into ``out`` from the content of ``fleet.json`` and the
+    parameters' spread across its healthy units (:func:`~torchpaml._diagnostics.spread.fleet_spread`)."""
     if spreads:
         fleet_figure(spreads).savefig(out / "fleet_parameters.png", dpi=100)
     rows = "".join(

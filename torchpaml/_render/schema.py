@@ -77,11 +77,10 @@ def _terms(discovery: Discovery) -> list[dict]:
     and that coefficient's standard error."""
     if discovery.effect is None:
         return []
-    effect, std = discovery.effect, discovery.discovered.uncertainty
-    gain = effect.values()["gain"]
-    return [{"term": term, "coefficient": c, "std": _error(abs(gain) * std.get(f"discovered.{name}", math.inf)),
-             "equation": e}
-            for (term, c, e), name in zip(effect.terms_and_coefficients(), effect.parameter_names, strict=True)]
+    effect = discovery.effect
+    errors = effect.coefficient_errors(discovery.discovered.uncertainty)
+    return [{"term": term, "coefficient": c, "std": _error(std), "equation": e}
+            for (term, c, e), std in zip(effect.terms_and_coefficients(), errors, strict=True)]
 
 
 def discovery_to_dict(discovery: Discovery) -> dict:

@@ -251,7 +251,7 @@ def _newton(physics: Dynamics, layout: _Layout, x0: torch.Tensor, tol: float, ma
             states = result.centre.detach() + (T @ (updated - starts)[:, :, None, :, None])[..., 0]
             return (states, T, starts) if differentiable else (states, None, None)
         starts = _trusted(ends, updated, scale, x0)
-    raise _NotConverged
+    raise _NotConverged(layout.assemble(result.centre.detach()))
 
 
 def _settled(gaps: torch.Tensor, ends: torch.Tensor, tol: float) -> int:
@@ -311,7 +311,8 @@ def _linear_states(physics: Dynamics, n: int) -> int:
 
 
 class _NotConverged(Exception):
-    """Newton did not converge within its sweeps: :func:`solve_shooting` retries with longer segments."""
+    """Newton did not converge within its sweeps: :func:`solve_shooting` retries with longer segments, from the
+    last sweep's states (``args[0]``, (batch, time, n)), whose settled prefix is exact."""
 
 
 class ShootingSolution:
@@ -390,7 +391,8 @@ def solve_shooting(
             if warm is not None:
                 warm.states = solution.trajectory
             return solution
-        except _NotConverged:
+        except _NotConverged as last:
+            guess = last.args[0] if bool(torch.isfinite(last.args[0]).all()) else guess
             length = layout.L * GROWTH  # fewer, longer segments; one is plain sequential stepping, which always ends
 
 

@@ -25,7 +25,8 @@ from torchpaml._errors import ConfigurationError
 from torchpaml._certificates import incompatibility_certificates
 from torchpaml._fit.residual_fit import project
 from torchpaml._metrics import fit_percent, mismatch
-from torchpaml._render.figures import dominant_frequency, overlay_figure, residual_figure, spectrum_figure
+from torchpaml._render.figures import overlay_figure, residual_figure, spectrum_figure
+from torchpaml._signals import dominant_frequency
 from torchpaml._residual.chebyshev_hammerstein import ChebyshevHammerstein
 from torchpaml._residual.hybrid import Hybrid
 from torchpaml._simulate.simulator import simulate

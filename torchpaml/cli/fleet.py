@@ -22,7 +22,9 @@ from pathlib import Path
 
 import yaml
 
+from torchpaml._diagnostics.spread import fleet_spread
 from torchpaml._errors import ConfigurationError, DataError
+from torchpaml._render.fleet import write_fleet_report
 from torchpaml.cli.diagnose import SWITCHES, check_options, diagnose_parser, normalise_arguments, resolve_models
 from torchpaml.cli.fleet_unit import diagnose_unit, finished
 
@@ -138,9 +140,7 @@ def diagnose_fleet(units: Path, out: Path, options: dict, *, address: str | None
     path = out / FLEET_FILE
     path.with_suffix(".json.partial").write_text(json.dumps(fleet, indent=2))
     os.replace(path.with_suffix(".json.partial"), path)
-    from torchpaml._render.fleet import write_fleet_report
-
-    write_fleet_report(fleet, out)
+    write_fleet_report(fleet, fleet_spread(fleet), out)
     return fleet
 
 
