@@ -5,7 +5,7 @@
 Data: the oscillator with a hidden cubic damping (the discovery cases' first), 20 Hz, 2 % noise, a
 pseudorandom training record and a multisine validation record of each length. For each length: one
 fit of the physics alone (the baseline, linear: exact simulation), and the discovery alone on it
-(:func:`~torchpaml.discover_missing_force` after a ranking with no candidates). Reported: seconds,
+(:func:`~torchpaml.analysis.discover_missing_force` after a ranking with no candidates). Reported: seconds,
 microseconds per sample, the discovery's ratio to the physics fit, and its time per sample against the
 shortest record's (1.0 is linear in N). One thread.
 """
@@ -16,7 +16,8 @@ from pathlib import Path
 
 import torch
 from bench_diagnosis import physics, rows_by_length
-from torchpaml import Oscillator, discover_missing_force, rank_missing_effects
+from torchpaml import Oscillator
+from torchpaml.analysis import discover_missing_force, rank_missing_effects
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments" / "discovery"))
 from forces import CubicDamping  # noqa: E402

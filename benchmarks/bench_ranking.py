@@ -18,14 +18,8 @@ import time
 
 import torch
 
-from torchpaml import (
-    CubicStiffness,
-    default_effects,
-    fit_physics,
-    Oscillator,
-    rank_missing_effects,
-    Simulated,
-)
+from torchpaml import CubicStiffness, Oscillator, Simulated, default_effects, fit_physics
+from torchpaml.analysis import rank_missing_effects
 
 
 def timed(work) -> float:

@@ -46,19 +46,17 @@ from torchpaml import (
     CubicStiffness,
     Discoverer,
     DynamicFriction,
-    Ranker,
-    diagnose,
-    build_model,
     Oscillator,
     Pendulum,
-    Simulated,
-    default_effects,
-    discover_missing_force,
+    Ranker,
     SelectionRule,
+    Simulated,
+    build_model,
+    default_effects,
+    diagnose,
     fit_physics,
-    model_ladder,
-    rank_missing_effects,
 )
+from torchpaml.analysis import discover_missing_force, model_ladder, rank_missing_effects
 from torchpaml._diagnostics import refits as refits_module
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments" / "discovery"))

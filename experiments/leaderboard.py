@@ -10,7 +10,7 @@
      "seconds"}
 
 ``models`` goes from the linear physics to the final grey box; ``hybrid`` is the final model with the orthogonal
-residual of the paper on top (:func:`torchpaml.hybrid_residual`, fitted on the training records only), ``accepted``
+residual of the paper on top (:func:`torchpaml.analysis.hybrid_residual`, fitted on the training records only), ``accepted``
 from its inadequacy alarm on validation, and an RMSE of ``null`` where a test input leaves the residual's domain.
 ``goal`` holds the benchmark's goal on its headline split (:func:`goal_entry`): the figure that counts (the hybrid's
 where its alarm accepts it, else the final grey box's), whether it meets the goal, and what limits it: one of
@@ -26,7 +26,8 @@ from pathlib import Path
 
 import torch
 
-from torchpaml import DomainError, ModelScore, Record, hybrid_residual, simulate_record
+from torchpaml import DomainError, ModelScore, Record, simulate_record
+from torchpaml.analysis import hybrid_residual
 
 __all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "model_entry", "protocol",
            "write_result"]

@@ -4,42 +4,32 @@ Fit an ODE physics model to measurements u(t), y(t), see where it fails, find th
 misses, add it, and put a Chebyshev-Hammerstein residual on top that improves accuracy but cannot hide
 wrong physics (Kuang & Lin, "Structural Constraints for Physics-augmented Learning").
 
-Everything a user calls is exported here; the modules behind it are private. The command line is
-``torchpaml`` (:mod:`torchpaml.cli`). The Lightning systems load Lightning on first use.
+The top level holds what a script writes: physics and effects, records and signals, solvers, the fits,
+``diagnose`` and its stages, the residuals, the error measures, the report writer, the Lightning systems
+and the errors. The rest lives in named modules: :mod:`torchpaml.analysis` (the analyses a diagnosis
+composes), :mod:`torchpaml.figures`, :mod:`torchpaml.report` (JSON content and tables) and
+:mod:`torchpaml.engine` (the simulation engine's pieces). The modules behind them are private. The command
+line is ``torchpaml`` (:mod:`torchpaml.cli`). The Lightning systems load Lightning on first use.
 """
 
 import importlib
+import warnings
 
-from torchpaml._certificates import Certificate, incompatibility_certificates
-from torchpaml._data import Experiment, ExperimentSource, Files, Record, RecordSource, Simulated, simulate_record
+from torchpaml._budget import Budget, OverBudget
+from torchpaml._data import Files, Record, RecordSource, Simulated, simulate_record
 from torchpaml._diagnostics import (
-    SelectionRule,
     Adequacy,
-    AmplitudeBins,
-    Comparison,
     Diagnosis,
     Discoverer,
     Discovery,
     EffectEvidence,
-    HarmonicFingerprint,
     HybridScore,
     Ladder,
     ModelScore,
     Ranker,
     Ranking,
-    ResidualAnalysis,
-    ValidityMap,
-    assess_adequacy,
-    compare,
+    SelectionRule,
     diagnose,
-    discover_missing_force,
-    error_by_amplitude,
-    harmonic_fingerprint,
-    hybrid_residual,
-    model_ladder,
-    rank_missing_effects,
-    residual_analysis,
-    validity_map,
 )
 from torchpaml._errors import (
     ConfigurationError,
@@ -54,8 +44,8 @@ from torchpaml._fit import (
     Estimate,
     InitialState,
     PhysicsEstimate,
-    Rest,
     ResidualEstimate,
+    Rest,
     SparseRegression,
     estimate_initial_state,
     fit_chebyshev_hammerstein,
@@ -64,7 +54,6 @@ from torchpaml._fit import (
     fit_residual,
     reestimate_shift,
 )
-from torchpaml._budget import Budget, OverBudget
 from torchpaml._fit.uncertainty import IdentifiabilityWarning, Uncertainty
 from torchpaml._metrics import channel_mismatch, fit_percent, mismatch, rmse
 from torchpaml._parameters import Interval, PhysicalParameter, Positive, Real, register_parameters
@@ -73,212 +62,66 @@ from torchpaml._physics import (
     AbstractEffect,
     AbstractPhysics,
     ComposedModel,
-    ConstantForce,
-    CoulombFriction,
-    CubicStiffness,
-    DeadZone,
-    DynamicFriction,
-    EffectState,
-    Hysteresis,
-    InputLag,
     DiscoveredForce,
-    InputSaturation,
+    EffectState,
     Oscillator,
-    OutputSaturation,
     Pendulum,
-    PendulumRestoring,
-    QuadraticDamping,
-    QuadraticStiffness,
     SecondOrderPhysics,
     TermLibrary,
     default_effects,
-    complete_state,
     state_vector,
 )
+from torchpaml._physics import effects as _effects
+from torchpaml._physics.effects import *  # noqa: F403  the library's effects (EFFECT_CLASSES, derived from EFFECTS)
 from torchpaml._physics.registry import PHYSICS, build_model
-from torchpaml._render.figures import (
-    amplitude_figure,
-    comparison_figure,
-    diagnosis_figures,
-    discovery_figure,
-    ladder_figure,
-    overlay_figure,
-    ranking_figure,
-    residual_analysis_figure,
-    residual_figure,
-    spectrum_figure,
-    validity_figure,
-)
 from torchpaml._render.report import write_report
-from torchpaml._render.schema import SCHEMA_VERSION, diagnosis_to_dict, discovery_to_dict
-from torchpaml._render.tables import comparison_table, ranking_table
 from torchpaml._residual import AbstractResidual, ChebyshevHammerstein, ForceAugmented, MLPForce, MLPResidual
 from torchpaml._signals import chirp, cosine, multisine, pseudorandom, sine, time_grid
-from torchpaml._simulate import (
-    RK4,
-    TRBDF2,
-    Auto,
-    Dopri5,
-    Exact,
-    Solver,
-    WarmStart,
-    iir_filter,
-    output_jacobian,
-    simulate,
-)
+from torchpaml._simulate import RK4, TRBDF2, Auto, Dopri5, Exact, Solver, simulate
+from torchpaml._simulate.solvers import FixedStep
+from torchpaml import analysis, engine, figures, report  # noqa: E402  the named modules, as tp.figures, ...
 
 __all__ = [
-    # physics and effects
-    "AbstractPhysics",
-    "SecondOrderPhysics",
-    "Oscillator",
-    "Pendulum",
-    "state_vector",
-    "complete_state",
-    "AbstractEffect",
-    "ComposedModel",
-    "ConstantForce",
-    "CoulombFriction",
-    "CubicStiffness",
-    "DeadZone",
-    "Hysteresis",
-    "DynamicFriction",
-    "InputLag",
-    "EffectState",
-    "DiscoveredForce",
-    "InputSaturation",
-    "OutputSaturation",
-    "PendulumRestoring",
-    "QuadraticDamping",
-    "QuadraticStiffness",
-    "EFFECTS",
-    "PHYSICS",
-    "build_model",
-    "TermLibrary",
-    "SparseRegression",
-    "default_effects",
+    # physics and effects (the library's effects: EFFECT_CLASSES)
+    "AbstractPhysics", "SecondOrderPhysics", "Oscillator", "Pendulum", "state_vector", "AbstractEffect",
+    "ComposedModel", "EffectState", "DiscoveredForce", "EFFECTS", "default_effects", "PHYSICS", "build_model",
+    "TermLibrary", "SparseRegression", *_effects.EFFECT_CLASSES,
     # parameters
-    "Interval",
-    "PhysicalParameter",
-    "Positive",
-    "Real",
-    "register_parameters",
+    "Interval", "PhysicalParameter", "Positive", "Real", "register_parameters",
     # records and signals
-    "Record",
-    "RecordSource",
-    "Files",
-    "Simulated",
-    "chirp",
-    "cosine",
-    "multisine",
-    "pseudorandom",
-    "sine",
+    "Record", "RecordSource", "Files", "Simulated", "chirp", "cosine", "multisine", "pseudorandom", "sine",
     "time_grid",
     # simulation
-    "simulate",
-    "simulate_record",
-    "Solver",
-    "Auto",
-    "Exact",
-    "RK4",
-    "TRBDF2",
-    "Dopri5",
-    "WarmStart",
-    "output_jacobian",
-    "iir_filter",
+    "simulate", "simulate_record", "Solver", "FixedStep", "Auto", "Exact", "RK4", "TRBDF2", "Dopri5",
     # fitting
-    "fit_physics",
-    "PhysicsEstimate",
-    "InitialState",
-    "Rest",
-    "Estimate",
-    "Budget",
-    "OverBudget",
-    "Uncertainty",
-    "IdentifiabilityWarning",
-    "estimate_initial_state",
-    "fit_chebyshev_hammerstein",
-    "fit_residual",
-    "ResidualEstimate",
-    "fit_neural_force",
-    "reestimate_shift",
+    "fit_physics", "PhysicsEstimate", "InitialState", "Rest", "Estimate", "Budget", "OverBudget", "Uncertainty",
+    "IdentifiabilityWarning", "estimate_initial_state", "fit_chebyshev_hammerstein", "fit_residual",
+    "ResidualEstimate", "fit_neural_force", "reestimate_shift",
     # residuals
-    "AbstractResidual",
-    "ChebyshevHammerstein",
-    "MLPResidual",
-    "MLPForce",
-    "ForceAugmented",
-    "Certificate",
-    "incompatibility_certificates",
+    "AbstractResidual", "ChebyshevHammerstein", "MLPResidual", "MLPForce", "ForceAugmented",
     # measures
-    "mismatch",
-    "channel_mismatch",
-    "fit_percent",
-    "rmse",
-    # diagnostics
-    "diagnose",
-    "Diagnosis",
-    "HybridScore",
-    "hybrid_residual",
-    "compare",
-    "Comparison",
-    "residual_analysis",
-    "ResidualAnalysis",
-    "error_by_amplitude",
-    "AmplitudeBins",
-    "validity_map",
-    "ValidityMap",
-    "harmonic_fingerprint",
-    "HarmonicFingerprint",
-    "assess_adequacy",
-    "Adequacy",
-    "rank_missing_effects",
-    "Ranker",
-    "SelectionRule",
-    "Ranking",
-    "EffectEvidence",
-    "ModelScore",
-    "model_ladder",
-    "Ladder",
-    "discover_missing_force",
-    "Discoverer",
-    "Discovery",
-    # rendering
-    "write_report",
-    "diagnosis_to_dict",
-    "discovery_to_dict",
-    "SCHEMA_VERSION",
-    "diagnosis_figures",
-    "comparison_figure",
-    "comparison_table",
-    "ranking_figure",
-    "ranking_table",
-    "ladder_figure",
-    "residual_analysis_figure",
-    "amplitude_figure",
-    "validity_figure",
-    "discovery_figure",
-    "overlay_figure",
-    "residual_figure",
-    "spectrum_figure",
+    "mismatch", "channel_mismatch", "fit_percent", "rmse",
+    # the diagnosis and its stages
+    "diagnose", "Diagnosis", "Ranker", "Discoverer", "SelectionRule", "Ranking", "EffectEvidence", "ModelScore",
+    "Ladder", "Discovery", "Adequacy", "HybridScore", "write_report",
     # Lightning
-    "HybridSystem",
-    "PhysicsFit",
-    "ResidualFit",
-    "JointFit",
-    "RecordDataModule",
+    "HybridSystem", "PhysicsFit", "ResidualFit", "JointFit", "RecordDataModule",
     # errors
-    "ConfigurationError",
-    "DataError",
-    "DomainError",
-    "ResolutionError",
-    "SimulationError",
-    "PhysicsError",
+    "ConfigurationError", "DataError", "DomainError", "ResolutionError", "SimulationError", "PhysicsError",
     "TorchpamlError",
 ]
 
 #: Names whose module imports Lightning: loaded on first access, so that ``import torchpaml`` stays light.
 _LIGHTNING = ("RecordDataModule", "ExperimentDataModule", "HybridSystem", "JointFit", "PhysicsFit", "ResidualFit")
+#: Names that moved from the top level to a named module (CHANGELOG, 0.9.0): still found here, with a
+#: DeprecationWarning, until the next release.
+_MOVED = {
+    **dict.fromkeys(figures.__all__, "torchpaml.figures"),
+    **dict.fromkeys(["SCHEMA_VERSION", "comparison_table", "diagnosis_to_dict", "discovery_to_dict",
+                     "ranking_table"], "torchpaml.report"),
+    **dict.fromkeys(["WarmStart", "complete_state", "iir_filter", "output_jacobian"], "torchpaml.engine"),
+    **dict.fromkeys(analysis.__all__, "torchpaml.analysis"),
+}
 
 
 def __getattr__(name: str):
@@ -286,6 +129,10 @@ def __getattr__(name: str):
         value = getattr(importlib.import_module("torchpaml._training"), name)
         globals()[name] = value
         return value
+    if name in _MOVED:
+        warnings.warn(f"torchpaml.{name} moved to {_MOVED[name]}.{name}; the top-level name goes in the next "
+                      "release", DeprecationWarning, stacklevel=2)
+        return getattr(importlib.import_module(_MOVED[name]), name)
     raise AttributeError(f"module 'torchpaml' has no attribute {name!r}")
 
 

@@ -40,8 +40,8 @@ from pathlib import Path
 import torch
 
 from torchpaml.cli.progress import progress_lines  # noqa: E402
-from torchpaml import (Estimate, Ranker, Record, Solver, default_effects, diagnose, diagnosis_to_dict, simulate_record,
-                       write_report)
+from torchpaml import Estimate, Ranker, Record, Solver, default_effects, diagnose, simulate_record, write_report
+from torchpaml.report import diagnosis_to_dict
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments

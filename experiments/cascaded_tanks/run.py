@@ -41,21 +41,19 @@ from leaderboard import SCHEMA_VERSION, goal_entry, hybrid_entry, protocol, writ
 from tanks import FREE_SPILL_RATE, MAX_SPILL_RATE, SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow  # noqa: E402
 
 from torchpaml.cli.progress import progress_lines  # noqa: E402
-from torchpaml import (  # noqa: E402
+from torchpaml import (
     DeadZone,
     Discoverer,
-    fit_physics,
     Estimate,
     ModelScore,
-    diagnose,
-    discovery_to_dict,
-    diagnosis_to_dict,
-    Record,
     OutputSaturation,
-    ranking_table,
+    Record,
+    diagnose,
+    fit_physics,
     simulate_record,
     write_report,
 )
+from torchpaml.report import diagnosis_to_dict, discovery_to_dict, ranking_table
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "cascaded_tanks"
 VALIDATION_SHARE = 0.25

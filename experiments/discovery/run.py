@@ -22,16 +22,9 @@ from pathlib import Path
 import torch
 from forces import OUTSIDE
 
-from torchpaml import (
-    CoulombFriction,
-    default_effects,
-    discover_missing_force,
-    discovery_to_dict,
-    mismatch,
-    Oscillator,
-    rank_missing_effects,
-    Simulated,
-)
+from torchpaml import CoulombFriction, Oscillator, Simulated, default_effects, mismatch
+from torchpaml.analysis import discover_missing_force, rank_missing_effects
+from torchpaml.report import discovery_to_dict
 
 NOISE = 0.02
 

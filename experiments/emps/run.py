@@ -35,7 +35,7 @@ from leaderboard import SCHEMA_VERSION, arguments, goal_entry, hybrid_entry, mod
 from rigid_body import RigidBody  # noqa: E402
 
 from torchpaml.cli.progress import progress_lines  # noqa: E402
-from torchpaml import (  # noqa: E402
+from torchpaml import (
     Auto,
     ConstantForce,
     CoulombFriction,
@@ -44,11 +44,11 @@ from torchpaml import (  # noqa: E402
     Ranker,
     Record,
     diagnose,
-    diagnosis_to_dict,
     estimate_initial_state,
     simulate_record,
     write_report,
 )
+from torchpaml.report import diagnosis_to_dict
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "emps"
 #: The share of the estimation record held out for validation, at its end.

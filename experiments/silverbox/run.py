@@ -48,21 +48,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard'
 from leaderboard import SCHEMA_VERSION, arguments, goal_entry, hybrid_entry, protocol, write_result  # noqa: E402
 
 from torchpaml.cli.progress import progress_lines  # noqa: E402
-from torchpaml import (  # noqa: E402
+from torchpaml import (
     Auto,
     Discoverer,
+    Oscillator,
     Ranker,
-    default_effects,
-    diagnose,
-    diagnosis_to_dict,
-    discovery_to_dict,
-    estimate_initial_state,
     Record,
     Solver,
-    Oscillator,
+    default_effects,
+    diagnose,
+    estimate_initial_state,
     simulate_record,
     write_report,
 )
+from torchpaml.report import diagnosis_to_dict, discovery_to_dict
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "silverbox"
 TESTS = ("test_multisine", "test_arrow_no_extrapolation", "test_arrow_full")

@@ -24,11 +24,10 @@ from torchpaml import (
     build_model,
     default_effects,
     diagnose,
-    discovery_to_dict,
-    model_ladder,
-    ranking_table,
     write_report,
 )
+from torchpaml.analysis import model_ladder
+from torchpaml.report import discovery_to_dict, ranking_table
 
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 

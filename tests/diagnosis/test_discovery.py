@@ -14,32 +14,29 @@ from experiment_modules import load
 
 from torchpaml import (
     AbstractEffect,
-    Discoverer,
     AbstractPhysics,
     CoulombFriction,
     CubicStiffness,
+    Discoverer,
     Pendulum,
     PhysicalParameter,
     Positive,
+    Ranker,
     Real,
     SecondOrderPhysics,
-    Ranker,
     SelectionRule,
+    Simulated,
     SparseRegression,
     TermLibrary,
-    Simulated,
     default_effects,
     diagnose,
-    discover_missing_force,
-    discovery_to_dict,
     fit_physics,
     mismatch,
-    model_ladder,
-    rank_missing_effects,
-    ranking_table,
     register_parameters,
     state_vector,
 )
+from torchpaml.analysis import discover_missing_force, model_ladder, rank_missing_effects
+from torchpaml.report import discovery_to_dict, ranking_table
 
 from torchpaml._diagnostics.closed_form import refit_closed_form
 

@@ -13,8 +13,8 @@ import torch
 from torchpaml import TRBDF2
 from torchpaml._diagnostics import refits as refits_module
 
-from torchpaml import (ConstantForce, InputLag, QuadraticStiffness, Simulated, default_effects, diagnose,
-                       rank_missing_effects)
+from torchpaml import ConstantForce, InputLag, QuadraticStiffness, Simulated, default_effects, diagnose
+from torchpaml.analysis import rank_missing_effects
 
 from test_hidden_effects import CASES, physics, records, truth
 

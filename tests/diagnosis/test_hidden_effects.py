@@ -10,16 +10,9 @@ mismatch within 1.5x the noise floor (the mismatch of the noise-free record, com
 import pytest
 import torch
 
-from torchpaml import (
-    default_effects,
-    EFFECTS,
-    mismatch,
-    model_ladder,
-    Oscillator,
-    rank_missing_effects,
-    ranking_table,
-    Simulated,
-)
+from torchpaml import EFFECTS, Oscillator, Simulated, default_effects, mismatch
+from torchpaml.analysis import model_ladder, rank_missing_effects
+from torchpaml.report import ranking_table
 
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 

@@ -9,8 +9,18 @@ every output, so there it moves no sample: inactive.
 import pytest
 import torch
 
-from torchpaml import (AbstractEffect, CoulombFriction, PhysicalParameter, QuadraticDamping, Real, Simulated,
-                       build_model, diagnose, ranking_table, register_parameters)
+from torchpaml import (
+    AbstractEffect,
+    CoulombFriction,
+    PhysicalParameter,
+    QuadraticDamping,
+    Real,
+    Simulated,
+    build_model,
+    diagnose,
+    register_parameters,
+)
+from torchpaml.report import ranking_table
 
 pytestmark = pytest.mark.slow  # end-to-end diagnoses: the slow lane
 

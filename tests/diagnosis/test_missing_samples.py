@@ -3,16 +3,8 @@
 import pytest
 import torch
 
-from torchpaml import (
-    CoulombFriction,
-    DataError,
-    default_effects,
-    diagnose,
-    Record,
-    Oscillator,
-    rank_missing_effects,
-    Simulated,
-)
+from torchpaml import CoulombFriction, DataError, Oscillator, Record, Simulated, default_effects, diagnose
+from torchpaml.analysis import rank_missing_effects
 
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 

@@ -17,8 +17,18 @@ import pytest
 import torch
 
 from two_mass import FRICTION, TRUTH, TwoMass
-from torchpaml import (ConstantForce, CoulombFriction, Discoverer, CubicStiffness, Simulated, channel_mismatch, diagnose,
-                       diagnosis_to_dict, hybrid_residual, write_report)
+from torchpaml import (
+    ConstantForce,
+    CoulombFriction,
+    CubicStiffness,
+    Discoverer,
+    Simulated,
+    channel_mismatch,
+    diagnose,
+    write_report,
+)
+from torchpaml.analysis import hybrid_residual
+from torchpaml.report import diagnosis_to_dict
 
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 

@@ -13,8 +13,8 @@ from typing import ClassVar
 import pytest
 import torch
 
-from torchpaml import (Auto, ConstantForce, CubicStiffness, Oscillator, Record, Solver, fit_physics,
-                       rank_missing_effects, simulate)
+from torchpaml import Auto, ConstantForce, CubicStiffness, Oscillator, Record, Solver, fit_physics, simulate
+from torchpaml.analysis import rank_missing_effects
 from torchpaml._simulate.solvers import FixedStep
 
 TRUTH = {"zeta": 0.2, "omega0": 2.0, "gain": 1.5}

@@ -4,7 +4,7 @@ import numpy as np
 import torch
 from scipy import signal
 
-from torchpaml import iir_filter
+from torchpaml.engine import iir_filter
 
 
 def _inputs(seed=0, channels=3, time=40):

@@ -95,7 +95,7 @@ def test_gradients_of_a_stiff_simulation_match_central_differences():
     step = 1e-6
     with torch.no_grad():
         central = (loss(raw + step) - loss(raw - step)) / (2 * step)
-    y, J = tp.output_jacobian(model, ["zeta"], t, u, solver=solver)
+    y, J = tp.engine.output_jacobian(model, ["zeta"], t, u, solver=solver)
     assert float(reverse) == pytest.approx(float(central), rel=1e-6)
     assert float((J[..., 0] * weights).sum()) == pytest.approx(float(central), rel=1e-6)
     with pytest.raises(NotImplementedError, match="reverse mode"):

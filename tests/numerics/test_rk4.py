@@ -16,8 +16,8 @@ import torch
 from scipy.integrate import solve_ivp
 
 from torchpaml import Dopri5, RK4
-from torchpaml import (CubicStiffness, multisine, Oscillator, QuadraticDamping, simulate, SimulationError, time_grid,
-                       WarmStart)
+from torchpaml import CubicStiffness, Oscillator, QuadraticDamping, SimulationError, multisine, simulate, time_grid
+from torchpaml.engine import WarmStart
 
 
 def _duffing(zeta=0.2, k3=2.0):

@@ -12,7 +12,8 @@ import torch
 
 from experiment_modules import load
 from test_leaderboard import check_contract
-from torchpaml import Discoverer, Estimate, Record, diagnose, discovery_to_dict, fit_physics, simulate_record
+from torchpaml import Discoverer, Estimate, Record, diagnose, fit_physics, simulate_record
+from torchpaml.report import discovery_to_dict
 
 silverbox = load("silverbox/run.py")
 cascaded = load("cascaded_tanks/run.py")

@@ -1,6 +1,6 @@
 """The inadequacy alarm on the paper's two regimes (the contrast experiment's measured mismatches)."""
 
-from torchpaml import assess_adequacy
+from torchpaml.analysis import assess_adequacy
 
 
 def test_alpha4_is_adequate_and_alpha10_raises_the_alarm():

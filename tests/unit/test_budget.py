@@ -10,17 +10,17 @@ import torch
 from torchpaml import (
     Budget,
     CubicStiffness,
-    Record,
     Oscillator,
     OverBudget,
     RK4,
+    Record,
     SelectionRule,
     fit_physics,
     pseudorandom,
-    rank_missing_effects,
     simulate,
     time_grid,
 )
+from torchpaml.analysis import rank_missing_effects
 from torchpaml._diagnostics.refits import GATE_MARGIN, cannot_pass
 from torchpaml import _budget as budget_module
 

@@ -1,6 +1,7 @@
 """Certificates: the Chebyshev residual is orthogonal to the physics and its sensitivity; the MLP is not."""
 
-from torchpaml import incompatibility_certificates, Oscillator
+from torchpaml import Oscillator
+from torchpaml.analysis import incompatibility_certificates
 from torchpaml._certificates import draw_chebyshev, draw_mlp
 
 

@@ -4,9 +4,21 @@ import pytest
 import torch
 
 from two_mass import TRUTH, TwoMass
-from torchpaml import (ChebyshevHammerstein, DataError, DomainError, Oscillator, Record, channel_mismatch,
-                       fit_chebyshev_hammerstein, fit_physics, incompatibility_certificates, mismatch, pseudorandom,
-                       simulate, time_grid)
+from torchpaml import (
+    ChebyshevHammerstein,
+    DataError,
+    DomainError,
+    Oscillator,
+    Record,
+    channel_mismatch,
+    fit_chebyshev_hammerstein,
+    fit_physics,
+    mismatch,
+    pseudorandom,
+    simulate,
+    time_grid,
+)
+from torchpaml.analysis import incompatibility_certificates
 from torchpaml._certificates import draw_chebyshev
 
 

@@ -2,7 +2,10 @@
 
 import pytest
 
-from torchpaml import compare, comparison_figure, comparison_table, Record, Oscillator, pseudorandom, time_grid
+from torchpaml import Oscillator, Record, pseudorandom, time_grid
+from torchpaml.analysis import compare
+from torchpaml.figures import comparison_figure
+from torchpaml.report import comparison_table
 
 
 @pytest.fixture

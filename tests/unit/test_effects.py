@@ -6,13 +6,10 @@ import torch
 from torchpaml import RK4, Auto
 from torchpaml import (
     AbstractEffect,
-    complete_state,
     ComposedModel,
     CubicStiffness,
     DeadZone,
     DynamicFriction,
-    Record,
-    default_effects,
     EFFECTS,
     EffectState,
     Hysteresis,
@@ -23,8 +20,11 @@ from torchpaml import (
     Pendulum,
     PendulumRestoring,
     QuadraticDamping,
+    Record,
+    default_effects,
     simulate,
 )
+from torchpaml.engine import complete_state
 from torchpaml._physics.effects import _tanh_ratio
 from torchpaml._signals import pseudorandom, pseudorandom_knots, sine
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from torchpaml import harmonic_fingerprint
+from torchpaml.analysis import harmonic_fingerprint
 
 T = np.arange(0, 40 * math.pi, 0.01)  # 20 periods of 1 rad/s
 

@@ -8,20 +8,20 @@ from torchpaml import (
     AbstractEffect,
     CubicStiffness,
     DeadZone,
-    Record,
-    fit_physics,
     InputSaturation,
     Oscillator,
     PhysicalParameter,
     Positive,
-    pseudorandom,
     QuadraticDamping,
-    rank_missing_effects,
+    Record,
+    fit_physics,
+    pseudorandom,
     register_parameters,
     simulate,
     simulate_record,
     time_grid,
 )
+from torchpaml.analysis import rank_missing_effects
 from torchpaml._data import Simulated
 from torchpaml._diagnostics.probes import Secant, TangentLinear
 from torchpaml._diagnostics.first_order import first_order

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from scipy import signal as sps
 
-from torchpaml import residual_analysis, residual_analysis_figure
+from torchpaml.analysis import residual_analysis
+from torchpaml.figures import residual_analysis_figure
 
 N = 5000
 

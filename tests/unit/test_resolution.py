@@ -14,15 +14,15 @@ from torchpaml import RK4, TRBDF2, Auto, Exact
 from torchpaml import (
     ConstantForce,
     CubicStiffness,
-    Record,
-    fit_physics,
     Oscillator,
-    pseudorandom,
-    ranking_table,
+    Record,
     ResolutionError,
+    fit_physics,
+    pseudorandom,
     simulate,
     time_grid,
 )
+from torchpaml.report import ranking_table
 from torchpaml._fit import resolution
 from torchpaml._simulate import solvers
 from torchpaml._fit.resolution import STEP_TOLERANCE, step_gap

@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 import torch
 
-from torchpaml import error_by_amplitude, Oscillator, Pendulum, Simulated, validity_figure, validity_map
+from torchpaml import Oscillator, Pendulum, Simulated
+from torchpaml.analysis import error_by_amplitude, validity_map
+from torchpaml.figures import validity_figure
 
 
 def test_binned_mismatch_matches_a_direct_computation():

@@ -54,24 +54,6 @@ from torchpaml._parameters import PhysicalParameter, Positive, Real, register_pa
 from torchpaml._physics.effect import AbstractEffect, EffectState
 from torchpaml._physics.memory_effects import DynamicFriction, Hysteresis, InputLag
 
-__all__ = [
-    "AbstractEffect",
-    "EffectState",
-    "CubicStiffness",
-    "QuadraticStiffness",
-    "PendulumRestoring",
-    "CoulombFriction",
-    "QuadraticDamping",
-    "ConstantForce",
-    "InputSaturation",
-    "OutputSaturation",
-    "DeadZone",
-    "EFFECTS",
-    "default_effects",
-    "Hysteresis",
-    "DynamicFriction",
-    "InputLag",
-]
 
 
 def _tanh_ratio(s: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
@@ -214,12 +196,17 @@ class DeadZone(AbstractEffect):
         return u - torch.maximum(torch.minimum(u, width), -width)
 
 
-#: The library, by the names used on the command line and in reports.
+#: The library, by the names used on the command line and in reports: the one list of its effects, from which
+#: the package's exports derive (a new library effect is its class and its entry here).
 EFFECTS: dict[str, type[AbstractEffect]] = {
     cls.name: cls
     for cls in (CubicStiffness, QuadraticStiffness, PendulumRestoring, CoulombFriction, QuadraticDamping,
                 InputSaturation, OutputSaturation, ConstantForce, DeadZone, Hysteresis, DynamicFriction, InputLag)
 }
+#: The library effects' class names, as ``torchpaml`` exports them.
+EFFECT_CLASSES = sorted(cls.__name__ for cls in EFFECTS.values())
+
+__all__ = ["EFFECTS", "EFFECT_CLASSES", "AbstractEffect", "EffectState", "default_effects", *EFFECT_CLASSES]
 
 
 def default_effects() -> list[AbstractEffect]:
