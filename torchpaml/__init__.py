@@ -113,7 +113,7 @@ __all__ = [
 
 #: Names whose module imports Lightning: loaded on first access, so that ``import torchpaml`` stays light.
 _LIGHTNING = ("RecordDataModule", "ExperimentDataModule", "HybridSystem", "JointFit", "PhysicsFit", "ResidualFit")
-#: Names that moved from the top level to a named module (CHANGELOG, 0.9.0): still found here, with a
+#: Names that moved from the top level to a named module (CHANGELOG, Deprecated): still found here, with a
 #: DeprecationWarning, until the next release.
 _MOVED = {
     **dict.fromkeys(figures.__all__, "torchpaml.figures"),

@@ -24,7 +24,7 @@ from pathlib import Path
 from run import HOLD
 from tanks import SensorClip, TorricelliOutflow, TwoTanks
 
-from torchpaml import Record, fit_physics, simulate_record
+from torchpaml import Estimate, Record, fit_physics, simulate_record
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "cascaded_tanks"
 
@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> dict:
     model = benchmark_model()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # k2, k4 and the upper level's scale trade: the warning is expected
-        fit = fit_physics(model, estimation, initial_state="estimate", max_nfev=100)
+        fit = fit_physics(model, estimation, initial_state=Estimate(), max_nfev=100)
     x0 = fit.initial_states[0]
     result = {"parameters": fit.parameters, "initial_state": x0.tolist(),
               "rmse": {"estimation": rmse(model, estimation, x0, fit.solver), "test": rmse(model, test, x0, fit.solver)}}

@@ -40,7 +40,7 @@ def test_cascaded_tanks_linear_physics_from_the_estimated_shared_initial_state()
     estimation = Record.from_csv(cascaded.DATA / "estimation.csv", hold=cascaded.HOLD)
     test = Record.from_csv(cascaded.DATA / "test.csv", hold=cascaded.HOLD)
     physics = tanks.TwoTanks(0.01, 0.01, 0.01, 0.02, learn=("k1", "k3", "k4"))
-    fit = fit_physics(physics, estimation, initial_state="estimate")
+    fit = fit_physics(physics, estimation, initial_state=Estimate())
     x0 = fit.initial_states[0]
     assert 4.0 < float(x0[1]) < 6.5  # the lower level starts near the first measured sample (5.2 V)
     error = (test.y - simulate_record(physics, test, x0, solver=fit.solver)[0])[:, 0]

@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from torchpaml import CubicStiffness, Record, fit_physics, Oscillator, pseudorandom, time_grid
+from torchpaml import Estimate, CubicStiffness, Record, fit_physics, Oscillator, pseudorandom, time_grid
 
 X0 = torch.tensor([[0.8, -1.5]], dtype=torch.float64)
 
@@ -22,7 +22,7 @@ def test_the_initial_state_is_estimated_with_the_parameters(nonlinear):
     record = _record(truth)
     model = Oscillator(0.4, 1.8, 3.0, learn=("zeta", "omega0", "gain"))
     model = model + CubicStiffness(1.0) if nonlinear else model
-    fit = fit_physics(model, record, initial_state="estimate")
+    fit = fit_physics(model, record, initial_state=Estimate())
     assert fit.initial_states[0] == pytest.approx(X0[0], abs=1e-6)
     assert fit.parameters["zeta"] == pytest.approx(0.2, abs=1e-6)
     assert fit.mismatch < 1e-7
@@ -38,7 +38,7 @@ def test_from_rest_the_same_record_leaves_a_transient_error():
 
 def test_only_the_initial_state_when_no_parameter_is_learnable():
     truth = Oscillator(0.2, 2.0, 4.0, learn=())
-    fit = fit_physics(truth, _record(truth), initial_state="estimate")
+    fit = fit_physics(truth, _record(truth), initial_state=Estimate())
     assert fit.parameters == {}
     assert fit.initial_states[0] == pytest.approx(X0[0], abs=1e-8)
 
@@ -56,6 +56,6 @@ def test_starting_guesses_of_the_initial_states_go_to_the_first_rung_and_the_lad
     truth = Oscillator(0.2, 2.0, 4.0, learn=()) + CubicStiffness(1.5)
     train, validation = _record(truth), _record(truth, seed=1)
     diagnosis = diagnose(Oscillator(0.4, 1.8, 3.0, learn=("zeta", "omega0", "gain")), [CubicStiffness()], train,
-                         validation, initial_state="estimate", start_states=[X0[0]])
+                         validation, initial_state=Estimate(), start_states=[X0[0]])
     assert diagnosis.ladder.added == ["cubic_stiffness"]
     assert diagnosis.ladder.final.train_states[0] == pytest.approx(X0[0], abs=1e-5)

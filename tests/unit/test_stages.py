@@ -31,9 +31,10 @@ def test_the_stages_are_frozen_values_that_compare_and_refuse_bad_settings():
 
 
 def test_the_initial_state_policies_and_their_names():
-    assert as_initial_state("rest") == Rest() and as_initial_state("estimate") == Estimate()
+    with pytest.warns(DeprecationWarning):
+        assert as_initial_state("rest") == Rest() and as_initial_state("estimate") == Estimate()
     assert as_initial_state(Estimate()) is not None and Estimate().estimated and not Rest().estimated
-    with pytest.raises(ConfigurationError, match="initial_state must be 'rest' or 'estimate'"):
+    with pytest.raises(ConfigurationError, match=r"initial_state must be Rest\(\) or Estimate\(\)"):
         as_initial_state("guess")
 
 
@@ -59,7 +60,8 @@ def test_a_policy_object_and_its_name_fit_alike(grid):
     u = pseudorandom(grid, 1.0, seed=2)
     y = simulate(Oscillator(zeta=0.3, omega0=2.0), grid, u, torch.tensor([[0.4, -0.2]])).detach()
     record = Record(grid, u[0], y[0])
-    by_name = fit_physics(Oscillator(zeta=0.5, omega0=2.0), record, initial_state="estimate")
+    with pytest.warns(DeprecationWarning, match=r"initial_state='estimate' is deprecated: pass Estimate\(\)"):
+        by_name = fit_physics(Oscillator(zeta=0.5, omega0=2.0), record, initial_state="estimate")
     by_policy = fit_physics(Oscillator(zeta=0.5, omega0=2.0), record, initial_state=Estimate())
     assert by_name.parameters == by_policy.parameters
     assert torch.equal(by_name.initial_states[0], by_policy.initial_states[0])

@@ -157,7 +157,7 @@ def discover_missing_force(
                                      torch.cat([simulate_record(neural.model, r, x0, solver=neural.solver)[0]
                                                 for r, x0 in zip(validation, baseline.validation_states, strict=True)]))
     log.info("discovery: %d terms on %d equation(s) through the output", len(terms), len(equations))
-    data = columns(neural, baseline, terms, equations, variables, train, ranking.initial_state.estimated)
+    data = columns(neural, baseline, terms, equations, variables, train, ranking.initial_state)
     log.info("discovery: sparse regression on %d terms", len(terms) * len(equations))
     regressed = Regressed.of(data, [(e, t) for e in equations for t in terms], regression)
     best_effect = library_best(ranking)

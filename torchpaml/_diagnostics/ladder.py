@@ -75,7 +75,7 @@ def model_ladder(
         # the next rung's baseline is the refit's model fitted to the last digits (the refit stopped early)
         ranking = ranker.rank(best.refit.model, [c for c in candidates if c.name in remaining], train, validation,
                               initial_state=initial_state,
-                              start_states=best.refit.train_states if initial_state.estimated else None,
+                              start_states=initial_state.carried(best.refit.train_states),
                               deadline=deadline, solver=best.refit.solver, refitted=best)
         steps.append(ranking.baseline)
         rankings.append(ranking)

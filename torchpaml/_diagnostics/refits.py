@@ -73,7 +73,7 @@ def refit_effect(extended: AbstractPhysics, name: str, start: float, train: list
     solver = Auto(start=solver if solver is not None or baseline is None else baseline.solver)
     fit = functools.partial(fit_physics, extended, train, max_nfev=max_nfev, initial_state=initial_state, ftol=ftol,
                             budget=budget, bounds=bounds, solver=solver)
-    states = None if baseline is None or not initial_state.estimated else baseline.initial_states
+    states = None if baseline is None else initial_state.carried(baseline.initial_states)
     if baseline is None or move is None:
         return _halving_strength(extended, name, start, fit, states)
     raw = list(raw_parameters(extended, list(baseline.parameters)).values())
@@ -158,7 +158,7 @@ def free_shape(entry: EffectEvidence, train: list[Record], validation: list[Reco
     if not shape:
         return
     freed = copy.deepcopy(score.model).set_learnable(*(f"{entry.effect}.{name}" for name in shape))
-    states = score.train_states if initial_state.estimated else None
+    states = initial_state.carried(score.train_states)
     try:
         estimate = fit_physics(freed, train, max_nfev=max_nfev, initial_state=initial_state, start_states=states,
                                ftol=ftol, budget=budget, bounds=bounds, solver=Auto(start=score.solver))

@@ -13,9 +13,10 @@ import torch
 
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._data import Record
-from torchpaml._data.simulation import record_jacobian, record_response, record_states, simulate_record
+from torchpaml._data.simulation import record_response, record_states
 from torchpaml._diagnostics.probes import assigned
 from torchpaml._diagnostics.results import ModelScore
+from torchpaml._fit.initial_state import InitialState
 from torchpaml._fit.neural_force import NeuralForceFit
 from torchpaml._metrics import channel_weights
 from torchpaml._physics.terms import compile_term, input_values, state_columns, width_symbol
@@ -55,7 +56,7 @@ class Columns:
 
 
 def columns(neural: NeuralForceFit, baseline: ModelScore, terms: list[str], equations: dict[str, int],
-             variables: tuple[str, ...], train: Sequence[Record], estimate: bool) -> Columns:
+             variables: tuple[str, ...], train: Sequence[Record], initial_state: InitialState) -> Columns:
     """:class:`Columns` along the neural model's trajectories (module docstring, step 2), around the fitted physics
     of ``baseline`` from its training records' initial states."""
     physics, solver, starts = baseline.model, baseline.solver, baseline.train_states
@@ -93,13 +94,11 @@ def columns(neural: NeuralForceFit, baseline: ModelScore, terms: list[str], equa
         responses = torch.cat(responses) * weights
         parts["responses"].append(responses[:-1].reshape(len(rates), -1).T)  # rows: samples, then channels
         parts["learned"].append(responses[-1].reshape(-1))
-        y, J = record_jacobian(physics, names[:1], record, x0, initial_state=estimate, solver=solver) if estimate \
-            else (simulate_record(physics, record, x0, solver=solver), None)
+        y, free = initial_state.free_response(physics, record, x0, solver)  # (time, n_output, k): k = 0 at rest
         own = _own_sensitivities(physics, names, states, record.u)  # (N, n + n_output, p)
         own_responses = record_response(physics, record, x0, own[:, :n].movedim(-1, 0), solver)
         columns = own_responses.movedim(0, -1) + own[:, n:n + outputs, :]  # (N, n_output, p)
-        if estimate:  # the initial states' free responses
-            columns = torch.cat([columns, J[0, :, :, len(names[:1]):]], dim=-1)
+        columns = torch.cat([columns, free], dim=-1)  # the initial states' free responses
         parts["measured"].append(((record.y - y[0]) * weights).reshape(-1))
         parts["jacobian"].append((columns * weights[:, None]).reshape(len(record.t) * outputs, -1))
         if not samples:

@@ -42,8 +42,8 @@ def score_model(
     """
     initial_state = as_initial_state(initial_state)
     sse, n, norm = 0.0, 0, 0.0
-    starts = [estimate_initial_state(physics, r, solver=Auto(start=fit.solver)) if initial_state.estimated else None
-              for r in validation]
+    starts = initial_state.validation_starts(
+        validation, lambda record: estimate_initial_state(physics, record, solver=Auto(start=fit.solver)))
     outputs = []
     for record, x0 in zip(validation, starts, strict=True):
         y_model = simulate_record(physics, record, x0, solver=fit.solver)[0]

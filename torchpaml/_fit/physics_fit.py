@@ -150,12 +150,11 @@ def fit_physics(
     initial_state = as_initial_state(initial_state)
     records = [records] if isinstance(records, Record) else list(records)
     names = _checked_unknowns(physics, records, initial_state, start_states)
-    problem = TrustRegionProblem(physics, records, names, initial_state.estimated, checked_solver(solver),
+    problem = TrustRegionProblem(physics, records, names, initial_state, checked_solver(solver),
                                  [WarmStart() for _ in records] if warm is None else list(warm), budget)
     lower, upper = _raw_bounds(physics, names, bounds or {})
-    if initial_state.estimated:
-        lower = np.concatenate([lower, np.full(physics.state_dim * len(records), -np.inf)])
-        upper = np.concatenate([upper, np.full(physics.state_dim * len(records), np.inf)])
+    states = initial_state.unknowns(physics, records)  # unbounded
+    lower, upper = np.concatenate([lower, np.full(states, -np.inf)]), np.concatenate([upper, np.full(states, np.inf)])
     x = problem.start(start_states, lower, upper)
     problem.evaluate(x)  # raises SimulationError, naming the blow-up, at a bad start
     step_check = _StepCheck(problem)
@@ -173,14 +172,12 @@ def _checked_unknowns(physics: AbstractPhysics, records: list[Record], initial_s
                       start_states: Sequence[torch.Tensor] | None) -> list[str]:
     """The learnable parameters' names, after checking that the records' channels are the physics', that the fit has
     unknowns, and that ``start_states`` fits."""
-    if start_states is not None and (not initial_state.estimated or len(start_states) != len(records)):
-        raise ConfigurationError(f"start_states needs initial_state=Estimate() and one state per record "
-                                 f"({len(records)}), got {len(start_states)} with {initial_state!r}")
+    initial_state.guesses(physics, records, start_states)  # refuses start_states that do not fit the policy
     for record in records:
         check_channels(physics, record)
     check_outputs_vary(records)
     names = physics.learnable_names()
-    if not names and not initial_state.estimated:
+    if not names and not initial_state.unknowns(physics, records):
         raise ConfigurationError(f"{physics.display_name} has no learnable parameter; call set_learnable(name) first")
     return names
 
@@ -217,9 +214,9 @@ def _estimate(problem: TrustRegionProblem, x: np.ndarray) -> PhysicsEstimate:
     values = physics.physical_parameters()
     residual, jacobian = torch.from_numpy(residual.copy()), torch.from_numpy(jacobian.copy())
     initial_states = [x0[0] if x0 is not None else physics.initial_state(1)[0] for x0 in problem.starts(x)]
-    state_names = [f"x0[{r.name}].{s}" for r in records for s in physics.state_names] if problem.estimated else []
+    state_names = problem.initial_state.labels(physics, records)
     slopes = torch.cat([constraint_slopes(physics, names), torch.ones(len(state_names), dtype=torch.float64)])
-    x0_values = torch.cat(initial_states).tolist() if problem.estimated else []
+    x0_values = x[len(names):].tolist()
     estimates = torch.tensor([values[n] for n in names] + x0_values, dtype=torch.float64)
     uncertainty = parameter_uncertainty(names + state_names, estimates, residual, jacobian / slopes,
                                         at_limit=[n for n, slope in zip(names, slopes, strict=False) if slope == 0])

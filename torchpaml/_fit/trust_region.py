@@ -21,7 +21,8 @@ from torchpaml._data import Record
 from torchpaml._data.simulation import record_jacobian
 from torchpaml._errors import SimulationError
 from torchpaml._metrics import sample_scales
-from torchpaml._physics.base import AbstractPhysics, complete_state
+from torchpaml._fit.initial_state import InitialState
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._simulate.sensitivity import raw_parameters
 from torchpaml._simulate.solvers import Solver
 from torchpaml._simulate.warm import WarmStart
@@ -34,9 +35,10 @@ class TrustRegionProblem:
     the simulations counted and the lowest cost kept; ``solver`` is the solver of the records'
     simulations, which the step check may replace (:meth:`use`)."""
 
-    def __init__(self, physics: AbstractPhysics, records: list[Record], names: list[str], estimated: bool,
+    def __init__(self, physics: AbstractPhysics, records: list[Record], names: list[str], initial_state: InitialState,
                  solver: Solver, warm: list[WarmStart], budget: Budget | None):
-        self.physics, self.records, self.names, self.estimated = physics, records, names, estimated
+        self.physics, self.records, self.names, self.initial_state = physics, records, names, initial_state
+        self.with_states = initial_state.unknowns(physics, records) > 0  # the Jacobian's initial-state columns
         self.solver, self.warm, self.budget = solver, warm, budget
         self.raw = list(raw_parameters(physics, names).values())
         self.targets = [r.y[None] for r in records]
@@ -57,18 +59,13 @@ class TrustRegionProblem:
     def start(self, start_states, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
         """The first point: the parameters' current raw values, then each record's starting state (``start_states``
         or rest), inside the bounds."""
-        guesses = [None] * len(self.records) if start_states is None else start_states
-        guesses = [complete_state(self.physics, None if x is None else x.detach().reshape(1, -1), 1)[0].numpy()
-                   for x in guesses] if self.estimated else []
+        guesses = self.initial_state.guesses(self.physics, self.records, start_states)
         values = torch.stack([v.detach() for v in self.raw]).numpy() if self.raw else np.zeros(0)
         return np.clip(np.concatenate([values, *guesses]), lower, upper)
 
     def starts(self, x: np.ndarray) -> list[torch.Tensor | None]:
         """Each record's initial state (1, n_state) at ``x``, ``None`` (rest) where it is not estimated."""
-        if not self.estimated:
-            return [None] * len(self.records)
-        p, n = len(self.names), self.physics.state_dim
-        return [torch.from_numpy(x[p + i * n: p + (i + 1) * n].copy())[None] for i in range(len(self.records))]
+        return self.initial_state.states(self.physics, self.records, x[len(self.names):])
 
     def evaluate(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residual (samples,) and Jacobian (samples, unknowns) at ``x``, once per point, within the budget."""
@@ -103,16 +100,15 @@ class TrustRegionProblem:
         with torch.no_grad():
             for tensor, value in zip(self.raw, x, strict=False):
                 tensor.copy_(torch.tensor(value, dtype=torch.float64))
-        parts = [record_jacobian(self.physics, self.names, r, x0, warm=w, initial_state=self.estimated,
+        parts = [record_jacobian(self.physics, self.names, r, x0, warm=w, initial_state=self.with_states,
                                  solver=self.solver)
                  for r, w, x0 in zip(self.records, self.warm, self.starts(x), strict=True)]
         residual = torch.cat([(y - y_hat).flatten() for y, (y_hat, _) in zip(self.targets, parts, strict=True)])
-        p, n = len(self.names), self.physics.state_dim
+        p = len(self.names)
         columns = []
         for i, (_, J) in enumerate(parts):  # each record's x0 columns go to its own block
             J = J.reshape(-1, J.shape[-1])
             block = torch.zeros(len(J), len(x) - p, dtype=torch.float64)
-            if self.estimated:
-                block[:, i * n:(i + 1) * n] = J[:, p:]
+            block[:, i * (J.shape[1] - p):(i + 1) * (J.shape[1] - p)] = J[:, p:]  # none at rest
             columns.append(torch.cat([J[:, :p], block], dim=1))
         return (residual / self.scale).numpy(), (-torch.cat(columns) / self.scale[:, None]).numpy()

@@ -19,6 +19,7 @@ from typing import Literal
 import yaml
 from jsonargparse import ActionConfigFile, ArgumentError, ArgumentParser
 
+from torchpaml._fit.initial_state import policy_named
 from torchpaml._errors import ConfigurationError
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET
@@ -164,7 +165,7 @@ def diagnose_command(
     ranker, discovery = _stages(SelectionRule(criterion, threshold, min_share), shortlist, refit_budget, fit_budget,
                                 terms, discover or discover_always, discover_always)
     diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold, ranker=ranker,
-                                   initial_state=initial_state, discovery=discovery, budget=budget)
+                                   initial_state=policy_named(initial_state), discovery=discovery, budget=budget)
     path = Path(out) / "diagnosis.json"
     print(ranking_table(diagnosis.ranking))
     print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")
