@@ -45,30 +45,16 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
 
 from __future__ import annotations
 
-import functools
-import logging
-import math
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import torch
 
-from torchpaml._budget import REFIT_BUDGET, Budget
-from torchpaml._data import Record
-from torchpaml._data.simulation import simulate_record
-from torchpaml._diagnostics.closed_form_search import ClosedFormSearch, Regressed
-from torchpaml._diagnostics.regressors import columns
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
-from torchpaml._diagnostics.scoring import as_records
-from torchpaml._fit.neural_force import fit_neural_force
-from torchpaml._fit.sparse_regression import SparseRegression
-from torchpaml._metrics import mismatch
 from torchpaml._physics.discovered import DiscoveredForce
-from torchpaml._physics.terms import TermLibrary, compile_term, variables_of
+from torchpaml._physics.terms import compile_term
 
-__all__ = ["Discovery", "discover_missing_force", "library_best"]
+__all__ = ["Discovery", "closed_form_samples", "library_best"]
 
-log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -106,87 +92,12 @@ class Discovery:
         return found if isinstance(found, str) else "; ".join(f"{k}: {v}" for k, v in found.items())
 
 
-def discover_missing_force(
-    ranking: Ranking,
-    train: Record | Sequence[Record],
-    validation: Record | Sequence[Record],
-    *,
-    library: TermLibrary | None = None,
-    regression: SparseRegression | None = None,
-    max_iter: int = 60,
-    max_nfev: int = 40,
-    seed: int = 0,
-    deadline: float | None = None,
-) -> Discovery:
-    """Discover the force or rate missing from the ranking's physics (module docstring).
-
-    Args:
-        ranking: a ranking (:func:`~torchpaml.rank_missing_effects`; the ladder's last): its
-            baseline is the fitted physics to extend, its best refitted physical entry the library's best effect;
-            its ``rule`` judges the closed form, and its ``initial_state`` option applies.
-        train: the training record(s) the ranking was made on.
-        validation: the validation record(s) the ranking was made on.
-        library: the terms to regress on (default :class:`~torchpaml.TermLibrary`: products of degree
-            up to 3, sign-like products, square roots).
-        regression: the sparse regression (default :class:`~torchpaml._fit.sparse_regression.SparseRegression`:
-            at most 4 terms).
-        max_iter: L-BFGS iterations of the neural rate.
-        max_nfev: iteration limit of the closed form's refit.
-        seed: seed of the network's initial weights.
-        deadline: a ``time.perf_counter()`` time by which the search ends (the diagnosis' ``budget``). Each closed
-            form's refit may take ten fits of ``max_nfev`` evaluations at its own cost (it is several fits: the form,
-            its pruning, what remains), a screen its share of that (:mod:`torchpaml._budget`). A form stopped by
-            either is named in ``Discovery.undecided``, and so is a neural rate that stopped (the search goes on from
-            where it stood).
-    """
-    train, validation = as_records(train), as_records(validation)
-    library, regression = library or TermLibrary(), regression or SparseRegression()
-    baseline = ranking.baseline
-    physics = baseline.model
-    variables, equations = variables_of(physics)
-    terms = library.build(physics)
-    # a closed form's refit is several fits (the form, its pruning, what remains), each up to max_nfev evaluations
-    limits = Budget("", evaluations=REFIT_BUDGET * max_nfev, deadline=math.inf if deadline is None else deadline)
-    budget = Budget(f"discovery: training a neural rate on {physics.display_name}", deadline=limits.deadline)
-    log.info("discovery: training a neural rate on %s (at most %s)", physics.display_name, budget.describe())
-    neural = fit_neural_force(physics, train, baseline.train_states, max_iter=max_iter, seed=seed,
-                              solver=baseline.solver, budget=budget)
-    stopped = [] if neural.stopped is None else [f"the neural rate: over budget ({neural.stopped:.1f} s)"]
-    with torch.no_grad():
-        neural_validation = mismatch(torch.cat([r.y for r in validation]),
-                                     torch.cat([simulate_record(neural.model, r, x0, solver=neural.solver)[0]
-                                                for r, x0 in zip(validation, baseline.validation_states, strict=True)]))
-    log.info("discovery: %d terms on %d equation(s) through the output", len(terms), len(equations))
-    data = columns(neural, baseline, terms, equations, variables, train, ranking.initial_state)
-    log.info("discovery: sparse regression on %d terms", len(terms) * len(equations))
-    regressed = Regressed.of(data, [(e, t) for e in equations for t in terms], regression)
-    best_effect = library_best(ranking)
-    samples = {**data.samples, "closed_form": torch.zeros_like(data.samples["learned"])}
-    found = functools.partial(Discovery, baseline, best_effect, neural.mismatch, neural_validation)
-    if not regressed.proposed:
-        return found(None, None, False, "the sparse regression kept no term: nothing is missing that the physics "
-                     "cannot make", samples, stopped)
-    search = ClosedFormSearch(ranking, best_effect, train, validation, data, regressed, max_nfev, limits)
-    discovered, missing, reason = search.best(regression.max_terms)
-    undecided = stopped + search.undecided
-    if undecided:
-        reason += f"; undecided: {'; '.join(undecided)}"
-    if discovered is None:
-        return found(None, None, False, reason, samples, undecided)
-    effect = discovered.model.effects["discovered"]
-    if missing is None:  # the closed form does not improve on the physics: nothing is missing
-        return found(None, None, False, f"the best closed form, {effect.expression()}, does not improve on the "
-                     f"physics: {reason}", samples, undecided)
-    samples["closed_form"] = _closed_form_samples(effect, data.samples, variables, next(iter(equations)))
-    return found(effect, discovered, missing, reason, samples, undecided)
-
-
 def library_best(ranking: Ranking) -> EffectEvidence | None:
     """The ranking's best refitted physical candidate: what a discovered form must beat to be recommended."""
     return next((e for e in ranking.entries if e.refit is not None and not e.unphysical), None)
 
 
-def _closed_form_samples(effect: DiscoveredForce, samples: dict[str, torch.Tensor], variables: tuple[str, ...],
+def closed_form_samples(effect: DiscoveredForce, samples: dict[str, torch.Tensor], variables: tuple[str, ...],
                          equation: str) -> torch.Tensor:
     """The closed form's rate on ``equation`` at the figure's samples."""
     values = {**{v: samples[v] for v in variables}, **{w: getattr(effect, w).detach() for w in effect.width_names}}

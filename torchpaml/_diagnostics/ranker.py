@@ -2,29 +2,36 @@
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import torch
 
-from torchpaml._budget import REFIT_BUDGET, RUNG_FIT_BUDGET
+from torchpaml._budget import REFIT_BUDGET, RUNG_FIT_BUDGET, Budget
 from torchpaml._data import Record
-from torchpaml._diagnostics.ranking import rank_missing_effects
+from torchpaml._diagnostics.ranking import applicable, refit_shortlist, rung_fit, scored
+from torchpaml._diagnostics.refits import Refits, free_shape
+from torchpaml._diagnostics.scoring import as_records, score_model
 from torchpaml._diagnostics.results import EffectEvidence, Ranking
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._errors import ConfigurationError
-from torchpaml._fit.initial_state import InitialState, Rest
+from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
+from torchpaml._parameters import unphysical_values
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import AbstractEffect
 from torchpaml._simulate.solvers import Solver
 
-__all__ = ["Ranker"]
+__all__ = ["Ranker", "rank_missing_effects"]
+
+log = logging.getLogger("torchpaml._diagnostics.ranking")
 
 
 @dataclass(frozen=True)
 class Ranker:
-    """The settings of :func:`~torchpaml.rank_missing_effects` that a diagnosis ranks every rung by.
+    """How a diagnosis ranks every rung's candidate effects: the settings, and the ranking itself (:meth:`rank`).
 
     Attributes:
         rule: the decision rule (:class:`~torchpaml.SelectionRule`: BIC, threshold 10, min_share 5 %).
@@ -55,13 +62,78 @@ class Ranker:
             if not (value > 0 and math.isfinite(value)):
                 raise ConfigurationError(f"{name} must be positive and finite, got {value!r}")
 
-    def rank(self, physics: AbstractPhysics, candidates: Sequence[AbstractEffect], train: Sequence[Record],
-             validation: Sequence[Record], *, initial_state: InitialState = Rest(),
+    def rank(self, physics: AbstractPhysics, candidates: Sequence[AbstractEffect], train: Record | Sequence[Record],
+             validation: Record | Sequence[Record], *, initial_state: InitialState = Rest(),
              start_states: Sequence[torch.Tensor] | None = None, deadline: float | None = None,
              solver: Solver | None = None, refitted: EffectEvidence | None = None) -> Ranking:
-        """:func:`~torchpaml.rank_missing_effects` with these settings."""
-        return rank_missing_effects(physics, candidates, train, validation, rule=self.rule, shortlist=self.shortlist,
-                                    initial_state=initial_state, start_states=start_states, probe=self.probe,
-                                    max_nfev=self.max_nfev, refit_budget=self.refit_budget,
-                                    fit_budget=self.fit_budget, deadline=deadline,
-                                    solver=solver, refitted=refitted)
+        """Rank ``candidates`` as the effect missing from ``physics`` (:mod:`~torchpaml._diagnostics.ranking`).
+
+        Args:
+            physics: the physics to diagnose (not modified: a copy is fitted). Its learnable parameters
+                are fitted; ``physics + effect`` must work for every candidate.
+            candidates: effects at zero strength, e.g. :func:`~torchpaml.default_effects`; none: the
+                fitted baseline alone.
+            train: the records to fit on.
+            validation: the records to rank on.
+            initial_state: ``Rest()`` or ``Estimate()``: every fit estimates each training record's initial state
+                (:func:`~torchpaml.fit_physics`), and each validation record starts from its best state
+                (:mod:`~torchpaml._fit.initial_state`).
+            start_states: with ``Estimate()``, the baseline fit's starting guesses of the training records' initial
+                states (default rest).
+            deadline: a ``time.perf_counter()`` time by which every fit must end (the diagnosis' ``budget``).
+            solver: the solver ``physics`` was last fitted with (``PhysicsEstimate.solver``), or one to fit with,
+                where the step checks of its fits start (``Auto(start=solver)``): a fixed-step method (RK4, TR-BDF2, a
+                user's own) is the method of every refit and probe, also where the rung itself takes the exact path;
+                default ``Auto()``.
+            refitted: the refit that ``physics`` comes from (a ladder's next rung): the fit of ``physics`` may take
+                ``fit_budget`` times that refit, and keeps the refit's parameters over it
+                (``Ranking.fit_over_budget``). Without it, the fit runs to the ``deadline``.
+        """
+        train, validation = as_records(train), as_records(validation)
+        initial_state, rule = as_initial_state(initial_state), self.rule
+        candidates, skipped = applicable(physics, candidates)
+        end = math.inf if deadline is None else deadline
+        base, fit, seconds, over = rung_fit(physics, train, self.max_nfev, initial_state, start_states, solver,
+                                            refitted, self.fit_budget, end)
+        baseline = score_model(base, fit, validation, rule, initial_state)
+        # the rung's fit in seconds, or redone at a refit's own cost per evaluation (the exact path's is far cheaper)
+        limits = Budget(base.display_name, self.refit_budget * seconds, self.refit_budget * fit.evaluations, end)
+        if not candidates:
+            return Ranking(baseline, [], rule, skipped, initial_state, over, seconds)
+        if solver is not None and fit.solver.stepping() is None:  # a rung on the exact path: effects step by solver
+            fit = dataclasses.replace(fit, solver=solver)
+        log.info("scoring %d candidates to first order", len(candidates))
+        entries, extended_models = scored(base, candidates, train, fit, self.probe)
+        by_score = sorted(entries, key=lambda e: -e.score)
+        refits = Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, self.max_nfev, limits)
+        refit_shortlist([e for e in by_score if e.effect in extended_models], extended_models, self.shortlist, rule,
+                        validation, base, refits)
+        refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
+        if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
+            best = refitted[0]
+            free_shape(best, train, validation, rule, self.max_nfev, initial_state, refits.ftol,
+                       refits.budget(best.effect), extended_models[best.effect][3])
+            best.improvement = baseline.criterion - best.refit.criterion
+            best.unphysical = unphysical_values(best.refit.rows())
+        rest = [e for e in by_score if e.refit is None]
+        return Ranking(baseline, refitted + rest, rule, skipped, initial_state, over, seconds)
+
+
+def rank_missing_effects(
+    physics: AbstractPhysics,
+    candidates: Sequence[AbstractEffect],
+    train: Record | Sequence[Record],
+    validation: Record | Sequence[Record],
+    *,
+    rule: SelectionRule | None = None,
+    shortlist: int = 2,
+    probe: float = 1e-4,
+    max_nfev: int = 40,
+    refit_budget: float = REFIT_BUDGET,
+    fit_budget: float = RUNG_FIT_BUDGET,
+    **options,
+) -> Ranking:
+    """``Ranker(rule, shortlist, probe, max_nfev, refit_budget, fit_budget).rank(physics, candidates, train,
+    validation, **options)``: the ranking in one call (:meth:`Ranker.rank`)."""
+    return Ranker(rule or SelectionRule(), shortlist, probe, max_nfev, refit_budget, fit_budget).rank(
+        physics, candidates, train, validation, **options)

@@ -42,117 +42,33 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
 
 from __future__ import annotations
 
-import dataclasses
 
 import copy
 import logging
-import math
 from collections.abc import Sequence
 
 import torch
 
-from torchpaml._budget import REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, OverBudget
+from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Record
 from torchpaml._metrics import sample_scales
 from torchpaml._diagnostics.first_order import MIN_ACTING_SHARE, Engines, by_promise, first_order
-from torchpaml._diagnostics.refits import Refits, cannot_pass, free_shape
-from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
-from torchpaml._diagnostics.scoring import as_records, score_model
+from torchpaml._diagnostics.refits import Refits, cannot_pass
+from torchpaml._diagnostics.results import EffectEvidence
 from torchpaml._diagnostics.selection import SelectionRule
 from torchpaml._errors import ConfigurationError, SimulationError
-from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
+from torchpaml._fit.initial_state import InitialState
 from torchpaml._fit.physics_fit import PhysicsEstimate, fit_physics
-from torchpaml._parameters import unphysical_values
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import AbstractEffect
 from torchpaml._simulate.solvers import Auto, Solver
 
-__all__ = ["EffectEvidence", "ModelScore", "Ranking", "rank_missing_effects"]
+__all__ = ["applicable", "refit_shortlist", "rung_fit", "scored"]
 
 log = logging.getLogger(__name__)
 
 
-def rank_missing_effects(
-    physics: AbstractPhysics,
-    candidates: Sequence[AbstractEffect],
-    train: Record | Sequence[Record],
-    validation: Record | Sequence[Record],
-    *,
-    rule: SelectionRule | None = None,
-    shortlist: int = 2,
-    initial_state: str | InitialState = Rest(),
-    start_states: Sequence[torch.Tensor] | None = None,
-    probe: float = 1e-4,
-    max_nfev: int = 40,
-    refit_budget: float = REFIT_BUDGET,
-    fit_budget: float = RUNG_FIT_BUDGET,
-    deadline: float | None = None,
-    solver: Solver | None = None,
-    refitted: EffectEvidence | None = None,
-) -> Ranking:
-    """Rank ``candidates`` as the effect missing from ``physics`` (module docstring).
-
-    Args:
-        physics: the physics to diagnose (not modified: a copy is fitted). Its learnable parameters
-            are fitted; ``physics + effect`` must work for every candidate.
-        candidates: effects at zero strength, e.g. :func:`~torchpaml.default_effects`; none: the
-            fitted baseline alone.
-        train: the records to fit on.
-        validation: the records to rank on.
-        rule: the decision rule (:class:`~torchpaml.SelectionRule`; default BIC, threshold 10,
-            min_share 5 %).
-        shortlist: how many of the best-scored candidates are refitted (``len(candidates)``: all).
-        initial_state: ``Rest()`` (or ``"rest"``), or ``Estimate()`` (``"estimate"``): every fit estimates each
-            training record's initial state (:func:`~torchpaml.fit_physics`), and each validation record starts
-            from its best state (:mod:`~torchpaml._fit.initial_state`).
-        start_states: with ``Estimate()``, the baseline fit's starting guesses of the training records' initial
-            states (default rest).
-        probe: strength $\\delta$ of the first-order secant.
-        max_nfev: iteration limit of each refit.
-        refit_budget: each refit may take this many times the rung's own fit, in seconds or in its fit's evaluations
-            at the refit's own cost, whichever is longer (:mod:`torchpaml._budget`); one over it is reported
-            undecided (``EffectEvidence.undecided``).
-        fit_budget: after a refit (``refitted``), the fit of ``physics`` may take this many times that refit.
-        deadline: a ``time.perf_counter()`` time by which every fit must end (the diagnosis' ``budget``).
-        solver: the solver ``physics`` was last fitted with (``PhysicsEstimate.solver``), or one to fit with, where
-            the step checks of its fits start (``Auto(start=solver)``): a fixed-step method (RK4, TR-BDF2, a user's
-            own) is the method of every refit and probe, also where the rung itself takes the exact path; default
-            ``Auto()``.
-        refitted: the refit that ``physics`` comes from (a ladder's next rung): the fit of ``physics`` may take
-            ``fit_budget`` times that refit, and keeps the refit's parameters over it (``Ranking.fit_over_budget``).
-            Without it, the fit runs to the ``deadline``.
-    """
-    train, validation = as_records(train), as_records(validation)
-    initial_state, rule = as_initial_state(initial_state), rule or SelectionRule()
-    candidates, skipped = _applicable(physics, candidates)
-    end = math.inf if deadline is None else deadline
-    base, fit, seconds, over = _rung_fit(physics, train, max_nfev, initial_state, start_states, solver, refitted,
-                                         fit_budget, end)
-    baseline = score_model(base, fit, validation, rule, initial_state)
-    # the rung's fit in seconds, or redone at a refit's own cost per evaluation (the exact path's is far cheaper)
-    limits = Budget(base.display_name, refit_budget * seconds, refit_budget * fit.evaluations, end)
-    if not candidates:
-        return Ranking(baseline, [], rule, skipped, initial_state, over, seconds)
-    if solver is not None and fit.solver.stepping() is None:  # a rung on the exact path: the effects step by solver
-        fit = dataclasses.replace(fit, solver=solver)
-    log.info("scoring %d candidates to first order", len(candidates))
-    entries, extended_models = _scored(base, candidates, train, fit, probe)
-    by_score = sorted(entries, key=lambda e: -e.score)
-    refits = Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, max_nfev, limits)
-    _refit_shortlist([e for e in by_score if e.effect in extended_models], extended_models, shortlist, rule,
-                     validation, base, refits)
-    refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
-    if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
-        best = refitted[0]
-        free_shape(best, train, validation, rule, max_nfev, initial_state, refits.ftol, refits.budget(best.effect),
-                   extended_models[best.effect][3])
-        best.improvement = baseline.criterion - best.refit.criterion
-        best.unphysical = unphysical_values(best.refit.rows())
-    rest = [e for e in by_score if e.refit is None]
-    return Ranking(baseline, refitted + rest, rule, skipped, initial_state, over, seconds)
-
-
-def _refit_shortlist(scored: list[EffectEvidence], extended_models: dict[str, tuple], shortlist: int,
+def refit_shortlist(scored: list[EffectEvidence], extended_models: dict[str, tuple], shortlist: int,
                      rule: SelectionRule, validation: list[Record], base: AbstractPhysics, refits: Refits) -> None:
     """Refit the ``shortlist`` best-scored candidates of ``scored`` that could pass ``rule`` (:func:`cannot_pass`),
     and say in each entry why it was or was not refitted; a candidate whose probe moves fewer than
@@ -173,7 +89,7 @@ def _refit_shortlist(scored: list[EffectEvidence], extended_models: dict[str, tu
         refits.run(entry, *extended_models[entry.effect])
 
 
-def _rung_fit(physics: AbstractPhysics, train: list[Record], max_nfev: int, initial_state: InitialState,
+def rung_fit(physics: AbstractPhysics, train: list[Record], max_nfev: int, initial_state: InitialState,
               start_states: Sequence[torch.Tensor] | None, solver: Solver | None, refitted: EffectEvidence | None,
               fit_budget: float, deadline: float) -> tuple[AbstractPhysics, PhysicsEstimate, float, float | None]:
     """A copy of ``physics`` fitted on ``train`` as the rung's baseline, its fit, the rung's fit in seconds (with the
@@ -206,7 +122,7 @@ def placed(physics: AbstractPhysics, candidates: Sequence[AbstractEffect]) -> li
     return [effect for candidate in candidates for effect in candidate.placements(base_model)]
 
 
-def _applicable(physics: AbstractPhysics, candidates: Sequence[AbstractEffect]
+def applicable(physics: AbstractPhysics, candidates: Sequence[AbstractEffect]
                 ) -> tuple[list[AbstractEffect], dict[str, str]]:
     """The candidates that apply to ``physics``, each force on every degree of freedom it may act on
     (:meth:`~torchpaml.AbstractEffect.placements`), and why each of the others does not; checked before any fit."""
@@ -227,7 +143,7 @@ def _applicable(physics: AbstractPhysics, candidates: Sequence[AbstractEffect]
     return [c for c in candidates if c.name not in skipped], skipped
 
 
-def _scored(base: AbstractPhysics, candidates: list[AbstractEffect], train: list[Record], fit: PhysicsEstimate,
+def scored(base: AbstractPhysics, candidates: list[AbstractEffect], train: list[Record], fit: PhysicsEstimate,
             probe: float) -> tuple[list[EffectEvidence], dict[str, tuple]]:
     """Each candidate's first-order evidence, and, for each one scored, ``(base + candidate, its strength's name, the
     first-order move, its bounds)`` for its refit."""
