@@ -131,7 +131,7 @@ def test_fleet_refuses_bad_input_before_starting_ray(tmp_path, monkeypatch, caps
 
 
 @pytest.mark.parametrize("option, value, message", [
-    ("--refit_budget", "0", "--refit_budget is how many times its rung's fit a refit may take, > 0"),
+    ("--refit_budget", "0", "--refit_budget must be positive and finite, got 0"),
     ("--budget", "-5", "--budget is the seconds the whole diagnosis may take, > 0"),
 ])
 def test_diagnose_refuses_a_budget_that_allows_nothing_before_any_fit(tmp_path, monkeypatch, capsys, option, value,

@@ -35,6 +35,8 @@ point that moves with the machine's speed: a candidate it stops is reported unde
 
 from __future__ import annotations
 
+from torchpaml._errors import ConfigurationError
+
 import contextvars
 import logging
 import math
@@ -71,6 +73,12 @@ def checkpoint() -> None:
     budget = _ACTIVE.get()
     if budget is not None:
         budget.enforce()
+
+
+def check_budget(budget: float | None) -> None:
+    """Refuse a whole diagnosis' ``budget`` (seconds, or ``None``: no limit) that cannot work."""
+    if budget is not None and not budget > 0:
+        raise ConfigurationError(f"budget is the seconds the whole diagnosis may take, > 0; got {budget}")
 
 
 class OverBudget(RuntimeError):

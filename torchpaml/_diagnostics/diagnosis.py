@@ -47,7 +47,7 @@ from torchpaml._diagnostics.ladder import Ladder, model_ladder
 from torchpaml._diagnostics.ranker import Ranker
 from torchpaml._diagnostics.results import ModelScore, Ranking
 from torchpaml._diagnostics.scoring import as_records
-from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET, Budget
+from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, check_budget
 from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.validity import AmplitudeBins
 from torchpaml._errors import ConfigurationError, DataError
@@ -297,8 +297,7 @@ def diagnose(
             ``refit_budget`` (now ``ranker=Ranker(...)``).
     """
     ranker, discovery = _stages(ranker, discovery, legacy)
-    if budget is not None and not budget > 0:
-        raise ConfigurationError(f"budget is the seconds the whole diagnosis may take, > 0; got {budget}")
+    check_budget(budget)
     deadline = None if budget is None else time.perf_counter() + budget
     train, validation = as_records(train), as_records(validation)
     _check_records(physics, candidates, train, validation, discovery)

@@ -80,17 +80,17 @@ def resolve_models(physics: str | AbstractPhysics, fix: list[str] | None, effect
 
 def check_options(shortlist: int, min_share: float, refit_budget: float = REFIT_BUDGET, budget: float | None = None
                   ) -> None:
-    """Refuse ranking options that cannot work, before any fit."""
-    if shortlist < 1:
-        raise ConfigurationError(f"--shortlist must be at least 1 (how many best-scored candidates are refitted), "
-                         f"got {shortlist}")
-    if not 0 <= min_share < 1:
-        raise ConfigurationError(f"--min_share is a share of the validation mismatch, in [0, 1); got {min_share}")
-    if not refit_budget > 0:
-        raise ConfigurationError(f"--refit_budget is how many times its rung's fit a refit may take, > 0 (default "
-                         f"{REFIT_BUDGET:g}); got {refit_budget}")
-    if budget is not None and not budget > 0:
-        raise ConfigurationError(f"--budget is the seconds the whole diagnosis may take, > 0; got {budget}")
+    """Refuse ranking options that cannot work, before any fit: the stages' own checks (``Ranker``, ``SelectionRule``,
+    the diagnosis' budget), their messages naming the command's options."""
+    from torchpaml._budget import check_budget
+    from torchpaml._diagnostics.ranker import Ranker
+
+    try:
+        SelectionRule(min_share=min_share)
+        Ranker(shortlist=shortlist, refit_budget=refit_budget)
+        check_budget(budget)
+    except ConfigurationError as error:
+        raise ConfigurationError(f"--{error}") from None
 
 
 def diagnose_command(
@@ -156,6 +156,7 @@ def diagnose_command(
         quiet: no progress lines (by default each stage, the rung, the candidate refitted, the discovery's
             steps, is printed on stderr with the seconds since the start).
     """
+    from torchpaml._render.schema import diagnosis_to_dict
     from torchpaml._render.tables import ranking_table
 
     if Path(out).is_file():
@@ -169,7 +170,7 @@ def diagnose_command(
     path = Path(out) / "diagnosis.json"
     print(ranking_table(diagnosis.ranking))
     print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")
-    return json.loads(path.read_text())
+    return diagnosis_to_dict(diagnosis)
 
 
 def _stages(rule: SelectionRule, shortlist: int, refit_budget: float, fit_budget: float, terms: list[str] | None,
