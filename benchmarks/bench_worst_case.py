@@ -57,7 +57,7 @@ from torchpaml import (
     fit_physics,
 )
 from torchpaml.analysis import discover_missing_force, model_ladder, rank_missing_effects
-from torchpaml._diagnostics import refits as refits_module
+from torchpaml._diagnostics.ranking import refits as refits_module
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments" / "discovery"))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

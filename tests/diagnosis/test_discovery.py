@@ -38,7 +38,7 @@ from torchpaml import (
 from torchpaml.analysis import discover_missing_force, model_ladder, rank_missing_effects
 from torchpaml.report import discovery_to_dict, ranking_table
 
-from torchpaml._diagnostics.closed_form import refit_closed_form
+from torchpaml._diagnostics.discovery.closed_form import refit_closed_form
 
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 

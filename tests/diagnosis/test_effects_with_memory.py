@@ -11,7 +11,7 @@ import math
 import torch
 
 from torchpaml import TRBDF2
-from torchpaml._diagnostics import refits as refits_module
+from torchpaml._diagnostics.ranking import refits as refits_module
 
 from torchpaml import ConstantForce, InputLag, QuadraticStiffness, Simulated, default_effects, diagnose
 from torchpaml.analysis import rank_missing_effects

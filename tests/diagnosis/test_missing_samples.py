@@ -35,6 +35,6 @@ def test_diagnose_refuses_missing_samples_before_any_work_and_names_the_gaps(gap
     def no_fit(*args, **kwargs):
         raise AssertionError("diagnose fitted a model before checking the time axis")
 
-    monkeypatch.setattr("torchpaml._diagnostics.ranking.fit_physics", no_fit)
+    monkeypatch.setattr("torchpaml._diagnostics.ranking.steps.fit_physics", no_fit)
     with pytest.raises(DataError, match=r"299 of its 599 steps differ .* first between t = 0.05 and 0.15 s.*resample"):
         diagnose(_physics(), default_effects(), *gappy)

@@ -21,7 +21,7 @@ from torchpaml import (
     time_grid,
 )
 from torchpaml.analysis import rank_missing_effects
-from torchpaml._diagnostics.refits import GATE_MARGIN, cannot_pass
+from torchpaml._diagnostics.ranking.refits import GATE_MARGIN, cannot_pass
 from torchpaml import _budget as budget_module
 
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from torchpaml._diagnostics.spread import MAD_TO_STD, REACH, parameter_spread
+from torchpaml._diagnostics.analysis.spread import MAD_TO_STD, REACH, parameter_spread
 from torchpaml._render.fleet import severity_order
 
 

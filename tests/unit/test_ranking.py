@@ -23,9 +23,9 @@ from torchpaml import (
 )
 from torchpaml.analysis import rank_missing_effects
 from torchpaml._data import Simulated
-from torchpaml._diagnostics.probes import Secant, TangentLinear
-from torchpaml._diagnostics.first_order import first_order
-from torchpaml._diagnostics.refits import REFIT_CRITERION_STEP, refit_effect
+from torchpaml._diagnostics.ranking.probes import Secant, TangentLinear
+from torchpaml._diagnostics.ranking.first_order import first_order
+from torchpaml._diagnostics.ranking.refits import REFIT_CRITERION_STEP, refit_effect
 
 
 @pytest.fixture(scope="module")
@@ -173,7 +173,7 @@ def test_tangent_linear_outputs_equal_the_simulated_change(duffing, effect):
     # the effect's force along the baseline. Against RK4 simulations of base + effect (differenced against the
     # same model at strength 0, so RK4's own error cancels) it differs by O(delta) and by the first-order hold
     # of the force between samples, O((h omega0)^2) = 1e-2 here: held to 5 %.
-    from torchpaml._diagnostics.probes import TangentLinear
+    from torchpaml._diagnostics.ranking.probes import TangentLinear
 
     record = duffing[0]
     base, _, _ = fitted(record)
@@ -213,7 +213,7 @@ def test_candidates_that_do_not_apply_are_skipped_and_listed(duffing):
 def test_a_numerically_null_direction_of_the_physics_does_not_move_the_score():
     """A column that repeats another up to rounding (a parameter at its constraint's limit, an exact degeneracy) adds a
     direction the least squares would keep or drop by its last digits: the projection leaves it out."""
-    from torchpaml._diagnostics.first_order import NULL_DIRECTION, beyond_physics
+    from torchpaml._diagnostics.ranking.first_order import NULL_DIRECTION, beyond_physics
 
     generator = torch.Generator().manual_seed(0)
     J = torch.randn(500, 3, generator=generator, dtype=torch.float64)

@@ -1,19 +1,19 @@
 """Diagnostics: how the physics compares with the measurements, where it fails, and which effect is missing."""
 
-from torchpaml._diagnostics.adequacy import Adequacy, assess_adequacy
-from torchpaml._diagnostics.compare import Comparison, compare
-from torchpaml._diagnostics.discoverer import Discoverer
-from torchpaml._diagnostics.discovery import Discovery
-from torchpaml._diagnostics.discoverer import discover_missing_force
+from torchpaml._diagnostics.analysis.adequacy import Adequacy, assess_adequacy
+from torchpaml._diagnostics.analysis.compare import Comparison, compare
+from torchpaml._diagnostics.discovery.discoverer import Discoverer
+from torchpaml._diagnostics.discovery.result import Discovery
+from torchpaml._diagnostics.discovery.discoverer import discover_missing_force
 from torchpaml._diagnostics.diagnosis import Diagnosis, HybridScore, diagnose, hybrid_residual
-from torchpaml._diagnostics.harmonics import HarmonicFingerprint, harmonic_fingerprint
-from torchpaml._diagnostics.ladder import Ladder, model_ladder
-from torchpaml._diagnostics.ranker import Ranker
-from torchpaml._diagnostics.ranker import rank_missing_effects
+from torchpaml._diagnostics.analysis.harmonics import HarmonicFingerprint, harmonic_fingerprint
+from torchpaml._diagnostics.ranking.ladder import Ladder, model_ladder
+from torchpaml._diagnostics.ranking.ranker import Ranker
+from torchpaml._diagnostics.ranking.ranker import rank_missing_effects
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
-from torchpaml._diagnostics.selection import SelectionRule
-from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
-from torchpaml._diagnostics.validity import (
+from torchpaml._diagnostics.ranking.selection import SelectionRule
+from torchpaml._diagnostics.analysis.residuals import ResidualAnalysis, residual_analysis
+from torchpaml._diagnostics.analysis.validity import (
     AmplitudeBins,
     ValidityMap,
     error_by_amplitude,

@@ -9,13 +9,13 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    cross-correlation (:func:`~torchpaml.residual_analysis`), and the mismatch binned by
    |u| and by |y| (:func:`~torchpaml.error_by_amplitude`), for each output channel, with each channel's mismatch
    before and after the ladder and the channel where the missing effect shows most
-   (:mod:`~torchpaml._diagnostics.channels`);
+   (:mod:`~torchpaml._diagnostics.analysis.channels`);
 3. the **Chebyshev-Hammerstein residual** fitted on top of the first and of the last rung, with the
    inadequacy alarm (:func:`~torchpaml.assess_adequacy`): on wrong physics it cannot
    close the gap and says so; on physics whose training residual is noise by effect size (its
    cross-correlation with the input below :data:`NOISE_CORRELATION` at all but :data:`WHITE_SHARE`
    of the lags, coloured or not, whatever the record's length, and the orthogonal residual unable to
-   reduce it: :data:`~torchpaml._diagnostics.adequacy.NOISE_RATIO`) it says that the physics is
+   reduce it: :data:`~torchpaml._diagnostics.analysis.adequacy.NOISE_RATIO`) it says that the physics is
    complete at that noise level. The two residual fits are independent and run in two threads where torch has two
    or more (their filtering, in scipy and torch, releases the GIL: 36 s -> 27 s at 100 000 samples, the same
    numbers), in one where it has one (a fleet's worker, whose share of the cores is one);
@@ -39,17 +39,17 @@ from dataclasses import dataclass, field
 import torch
 
 from torchpaml._data import Record
-from torchpaml._diagnostics.adequacy import Adequacy, assess_adequacy
-from torchpaml._diagnostics.channels import ChannelScore, channel_scores, shows_most
-from torchpaml._diagnostics.discoverer import Discoverer
-from torchpaml._diagnostics.discovery import Discovery
-from torchpaml._diagnostics.ladder import Ladder, model_ladder
-from torchpaml._diagnostics.ranker import Ranker
+from torchpaml._diagnostics.analysis.adequacy import Adequacy, assess_adequacy
+from torchpaml._diagnostics.analysis.channels import ChannelScore, channel_scores, shows_most
+from torchpaml._diagnostics.discovery.discoverer import Discoverer
+from torchpaml._diagnostics.discovery.result import Discovery
+from torchpaml._diagnostics.ranking.ladder import Ladder, model_ladder
+from torchpaml._diagnostics.ranking.ranker import Ranker
 from torchpaml._diagnostics.results import ModelScore, Ranking
-from torchpaml._diagnostics.scoring import as_records
+from torchpaml._diagnostics.ranking.scoring import as_records
 from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, check_budget
-from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
-from torchpaml._diagnostics.validity import AmplitudeBins
+from torchpaml._diagnostics.analysis.residuals import ResidualAnalysis, residual_analysis
+from torchpaml._diagnostics.analysis.validity import AmplitudeBins
 from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._grid import uniform_step
 from torchpaml._data.simulation import simulate_record
@@ -110,7 +110,7 @@ class Diagnosis:
     hybrids: list[HybridScore]
     validation: list[Record] = field(repr=False)
     discovery: Discovery | None = None
-    #: each output channel on validation (:mod:`~torchpaml._diagnostics.channels`); ``residuals``, ``by_input`` and
+    #: each output channel on validation (:mod:`~torchpaml._diagnostics.analysis.channels`); ``residuals``, ``by_input`` and
     #: ``by_output`` are the first channel's
     channels: list[ChannelScore] = field(default_factory=list)
 

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._fit.initial_state import InitialState, Rest
 from torchpaml._fit.physics_fit import PhysicsEstimate
 from torchpaml._parameters import with_uncertainty
@@ -73,7 +73,7 @@ class EffectEvidence:
     candidate was or was not refitted; ``undecided`` is the seconds its refit ran before it stopped over its budget
     (:mod:`torchpaml._budget`; 0 where the diagnosis' budget was spent before it started), else ``None``;
     ``seconds`` the time its refit took (``None`` where it was not refitted); ``acting`` the share of the training
-    samples whose output its first-order probe moves (:func:`~torchpaml._diagnostics.first_order.acting_share`).
+    samples whose output its first-order probe moves (:func:`~torchpaml._diagnostics.ranking.first_order.acting_share`).
     """
 
     effect: str
@@ -93,7 +93,7 @@ class EffectEvidence:
 
 @dataclass
 class Ranking:
-    """The baseline and the candidates, best first (:mod:`~torchpaml._diagnostics.ranking`), and the rule and
+    """The baseline and the candidates, best first (:mod:`~torchpaml._diagnostics.ranking.steps`), and the rule and
     initial-state policy they were ranked by (discovery on this ranking uses both)."""
 
     baseline: ModelScore

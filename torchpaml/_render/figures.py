@@ -29,7 +29,7 @@ if TYPE_CHECKING:
         ResidualAnalysis,
         ValidityMap,
     )
-    from torchpaml._diagnostics.spread import ParameterSpread
+    from torchpaml._diagnostics.analysis.spread import ParameterSpread
 
 __all__ = [
     "amplitude_figure",

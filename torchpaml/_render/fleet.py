@@ -3,7 +3,7 @@
 Severity: units that failed come first (they need attention), then units with missing effects, by
 how much adding them lowered the validation mismatch, then the rest. The spread of every parameter
 that at least three units have is drawn in ``fleet_parameters.png``, with the units that stand out
-marked (:func:`~torchpaml._diagnostics.spread.parameter_spread`).
+marked (:func:`~torchpaml._diagnostics.analysis.spread.parameter_spread`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from __future__ import annotations
 import html
 from pathlib import Path
 
-from torchpaml._diagnostics.spread import REACH, ParameterSpread
+from torchpaml._diagnostics.analysis.spread import REACH, ParameterSpread
 from torchpaml._render.figures import fleet_figure
 
 __all__ = ["severity_order", "write_fleet_report"]
@@ -34,7 +34,7 @@ def _pct(value: float | None) -> str:
 
 def write_fleet_report(fleet: dict, spreads: list[ParameterSpread], out: Path) -> Path:
     """Write ``fleet.html`` and ``fleet_parameters.png`` into ``out`` from the content of ``fleet.json`` and the
-    parameters' spread across its healthy units (:func:`~torchpaml._diagnostics.spread.fleet_spread`)."""
+    parameters' spread across its healthy units (:func:`~torchpaml._diagnostics.analysis.spread.fleet_spread`)."""
     if spreads:
         fleet_figure(spreads).savefig(out / "fleet_parameters.png", dpi=100)
     rows = "".join(

@@ -142,7 +142,7 @@ class ResidualFit(HybridSystem):
     def adequacy(self):
         """The inadequacy alarm (:func:`~torchpaml.assess_adequacy`) on the whole training and
         validation records: physics alone against physics + the orthogonal residual."""
-        from torchpaml._diagnostics.adequacy import assess_adequacy
+        from torchpaml._diagnostics.analysis.adequacy import assess_adequacy
 
         data = self.trainer.datamodule
         mismatches = {split: self.record_mismatches(data.records(split)) for split in ("train", "validation")

@@ -21,7 +21,7 @@ from jsonargparse import ActionConfigFile, ArgumentError, ArgumentParser
 
 from torchpaml._fit.initial_state import policy_named
 from torchpaml._errors import ConfigurationError
-from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET
 from torchpaml.cli.progress import progress_lines
 from torchpaml._physics.base import AbstractPhysics
@@ -83,7 +83,7 @@ def check_options(shortlist: int, min_share: float, refit_budget: float = REFIT_
     """Refuse ranking options that cannot work, before any fit: the stages' own checks (``Ranker``, ``SelectionRule``,
     the diagnosis' budget), their messages naming the command's options."""
     from torchpaml._budget import check_budget
-    from torchpaml._diagnostics.ranker import Ranker
+    from torchpaml._diagnostics.ranking.ranker import Ranker
 
     try:
         SelectionRule(min_share=min_share)
@@ -176,8 +176,8 @@ def diagnose_command(
 def _stages(rule: SelectionRule, shortlist: int, refit_budget: float, fit_budget: float, terms: list[str] | None,
             discover: bool, always: bool):
     """The ranker and the discoverer (``None`` without ``discover``) of the command's options."""
-    from torchpaml._diagnostics.discoverer import Discoverer
-    from torchpaml._diagnostics.ranker import Ranker
+    from torchpaml._diagnostics.discovery.discoverer import Discoverer
+    from torchpaml._diagnostics.ranking.ranker import Ranker
     from torchpaml._physics.terms import TermLibrary
 
     ranker = Ranker(rule=rule, shortlist=shortlist, refit_budget=refit_budget, fit_budget=fit_budget)

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import yaml
 
-from torchpaml._diagnostics.spread import fleet_spread
+from torchpaml._diagnostics.analysis.spread import fleet_spread
 from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._render.fleet import write_fleet_report
 from torchpaml.cli.diagnose import SWITCHES, check_options, diagnose_parser, normalise_arguments, resolve_models

@@ -1,8 +1,8 @@
-r"""The closed form refitted with the physics, with honest numbers (step 3 of :mod:`~torchpaml._diagnostics.discovery`).
+r"""The closed form refitted with the physics, with honest numbers (step 3 of :mod:`~torchpaml._diagnostics.discovery.result`).
 
 :func:`refit_closed_form` fits ``physics + DiscoveredForce(terms)`` by output error, then, pass by pass:
 
-* a smoothed sign's width is bounded to what the record resolves (:func:`~torchpaml._diagnostics.regressors.width_range`);
+* a smoothed sign's width is bounded to what the record resolves (:func:`~torchpaml._diagnostics.discovery.regressors.width_range`);
   one that ends within :data:`EDGE` of the lower edge is a sign (``tanh(s/eps)`` becomes ``sign(s)``, and
   ``s*sign(s)`` becomes ``Abs(s)``), one at the upper edge is linear (``m*tanh(s/eps)`` becomes ``m*s``);
 * the term whose standard error most exceeds its coefficient (more than :data:`DETERMINED` times) is
@@ -26,10 +26,10 @@ import torch
 from torchpaml._fit.initial_state import InitialState
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._data import Record
-from torchpaml._diagnostics.refits import REFIT_CRITERION_STEP, refit_effect
+from torchpaml._diagnostics.ranking.refits import REFIT_CRITERION_STEP, refit_effect
 from torchpaml._diagnostics.results import ModelScore
-from torchpaml._diagnostics.scoring import score_model
-from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._diagnostics.ranking.scoring import score_model
+from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._errors import SimulationError
 from torchpaml._fit import PhysicsEstimate
 from torchpaml._budget import Budget

@@ -14,11 +14,11 @@ import torch
 from torchpaml._budget import REFIT_BUDGET, Budget
 from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
-from torchpaml._diagnostics.closed_form_search import ClosedFormSearch, Regressed
-from torchpaml._diagnostics.discovery import Discovery, closed_form_samples, library_best
-from torchpaml._diagnostics.regressors import columns
+from torchpaml._diagnostics.discovery.closed_form_search import ClosedFormSearch, Regressed
+from torchpaml._diagnostics.discovery.result import Discovery, closed_form_samples, library_best
+from torchpaml._diagnostics.discovery.regressors import columns
 from torchpaml._diagnostics.results import Ranking
-from torchpaml._diagnostics.scoring import as_records
+from torchpaml._diagnostics.ranking.scoring import as_records
 from torchpaml._errors import ConfigurationError
 from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
@@ -27,7 +27,7 @@ from torchpaml._physics.terms import TermLibrary, variables_of
 
 __all__ = ["Discoverer", "discover_missing_force"]
 
-log = logging.getLogger("torchpaml._diagnostics.discovery")
+log = logging.getLogger("torchpaml._diagnostics.discovery.result")
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,7 @@ class Discoverer:
 
     def discover(self, ranking: Ranking, train: Sequence[Record], validation: Sequence[Record],
                  deadline: float | None = None, complete: bool = False) -> Discovery:
-        """Discover the force or rate missing from ``ranking``'s physics (:mod:`~torchpaml._diagnostics.discovery`)
+        """Discover the force or rate missing from ``ranking``'s physics (:mod:`~torchpaml._diagnostics.discovery.result`)
         with these settings; where the rung is ``complete`` (``Adequacy.complete``) and not :attr:`always`, a
         discovery that says so, without a search (``Discovery.searched`` false).
 
@@ -83,7 +83,7 @@ class Discoverer:
 
     def _search(self, ranking: Ranking, train: Record | Sequence[Record], validation: Record | Sequence[Record],
                 deadline: float | None) -> Discovery:
-        """The search (:mod:`~torchpaml._diagnostics.discovery`): a neural rate, the terms' columns along its
+        """The search (:mod:`~torchpaml._diagnostics.discovery.result`): a neural rate, the terms' columns along its
         trajectories, the sparse regression, and the closed forms' refits, each within the ``deadline``. Each closed
         form's refit may take ten fits of ``max_nfev`` evaluations at its own cost (it is several fits: the form,
         its pruning, what remains), a screen its share of that (:mod:`torchpaml._budget`). A form stopped by either

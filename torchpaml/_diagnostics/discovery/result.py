@@ -22,7 +22,7 @@ its fitted parameters $\hat\theta$, $\dot x = f_{\hat\theta}(t, x, u)$, $y = h(x
    (:class:`~torchpaml._fit.sparse_regression.SparseRegression`: STLSQ and a forward path, scored by
    the extended BIC, which pays for the size of the search) picks the few terms that explain the
    measured residual $y - \hat y_{\text{physics}}$.
-3. **Refit, with honest numbers** (:func:`~torchpaml._diagnostics.closed_form.refit_closed_form`). The
+3. **Refit, with honest numbers** (:func:`~torchpaml._diagnostics.discovery.closed_form.refit_closed_form`). The
    closed form becomes a :class:`~torchpaml.DiscoveredForce` refitted with the physics by
    output error. A smoothed sign's width is bounded to what the record resolves (:func:`width_range`:
    from the typical change of $s$ over one sample to its RMS), and replaced by its limit at an edge

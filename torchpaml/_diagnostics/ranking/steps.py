@@ -52,10 +52,10 @@ import torch
 from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Record
 from torchpaml._metrics import sample_scales
-from torchpaml._diagnostics.first_order import MIN_ACTING_SHARE, Engines, by_promise, first_order
-from torchpaml._diagnostics.refits import Refits, cannot_pass
+from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE, Engines, by_promise, first_order
+from torchpaml._diagnostics.ranking.refits import Refits, cannot_pass
 from torchpaml._diagnostics.results import EffectEvidence
-from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._errors import ConfigurationError, SimulationError
 from torchpaml._fit.initial_state import InitialState
 from torchpaml._fit.physics_fit import PhysicsEstimate, fit_physics
@@ -72,7 +72,7 @@ def refit_shortlist(scored: list[EffectEvidence], extended_models: dict[str, tup
                      rule: SelectionRule, validation: list[Record], base: AbstractPhysics, refits: Refits) -> None:
     """Refit the ``shortlist`` best-scored candidates of ``scored`` that could pass ``rule`` (:func:`cannot_pass`),
     and say in each entry why it was or was not refitted; a candidate whose probe moves fewer than
-    :data:`~torchpaml._diagnostics.first_order.MIN_ACTING_SHARE` of the samples is not judged by its score."""
+    :data:`~torchpaml._diagnostics.ranking.first_order.MIN_ACTING_SHARE` of the samples is not judged by its score."""
     for entry in (e for e in scored if e.acting < MIN_ACTING_SHARE):
         entry.refit_reason = (f"not refitted: its first-order probe moves {100 * entry.acting:.2g} % of the training "
                               "samples, too few for its score to judge it (whether the fitted output reaches where it "

@@ -1,4 +1,4 @@
-r"""The discovery's closed form (:mod:`~torchpaml._diagnostics.discovery`, steps 3 and 4): the sparse regression's
+r"""The discovery's closed form (:mod:`~torchpaml._diagnostics.discovery.result`, steps 3 and 4): the sparse regression's
 support (:class:`Regressed`), refitted with honest numbers, and, where first order may be misled, a search by refits
 (:class:`ClosedFormSearch`)."""
 
@@ -12,10 +12,10 @@ import torch
 
 from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Record
-from torchpaml._diagnostics.closed_form import fit_closed_form, refit_closed_form
-from torchpaml._diagnostics.regressors import Columns
+from torchpaml._diagnostics.discovery.closed_form import fit_closed_form, refit_closed_form
+from torchpaml._diagnostics.discovery.regressors import Columns
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
-from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._fit.sparse_regression import SparseRegression
 from torchpaml._fit.uncertainty import COLLINEARITY_LIMIT
 

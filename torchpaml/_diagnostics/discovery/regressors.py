@@ -1,4 +1,4 @@
-r"""The discovery's regression data (:mod:`~torchpaml._diagnostics.discovery`, step 2): each library term's response
+r"""The discovery's regression data (:mod:`~torchpaml._diagnostics.discovery.result`, step 2): each library term's response
 through the physics along the neural model's trajectories, the learned rate's, the measured residual, and the
 physics' own sensitivities, records concatenated. With several output channels every channel's samples are rows,
 each channel weighted by $1/\mathrm{RMS}(y_c)$ (:func:`~torchpaml._metrics.channel_weights`)."""
@@ -14,7 +14,7 @@ import torch
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._data import Record
 from torchpaml._data.simulation import record_response, record_states
-from torchpaml._diagnostics.probes import assigned
+from torchpaml._diagnostics.ranking.probes import assigned
 from torchpaml._diagnostics.results import ModelScore
 from torchpaml._fit.initial_state import InitialState
 from torchpaml._fit.neural_force import NeuralForceFit

@@ -1,4 +1,4 @@
-r"""The first-order score of a candidate effect (the ranking's step 2, :mod:`~torchpaml._diagnostics.ranking`): the
+r"""The first-order score of a candidate effect (the ranking's step 2, :mod:`~torchpaml._diagnostics.ranking.steps`): the
 share of the residual that the effect's output direction, beyond what the physics' own parameters make, removes."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import torch
 from torch import nn
 
 from torchpaml._data import Record
-from torchpaml._diagnostics.probes import Secant, TangentLinear
+from torchpaml._diagnostics.ranking.probes import Secant, TangentLinear
 from torchpaml._errors import ConfigurationError
 from torchpaml._fit.physics_fit import PhysicsEstimate
 from torchpaml._physics.base import AbstractPhysics

@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import torch
 
 from torchpaml._data import Record
-from torchpaml._diagnostics.residuals import ResidualAnalysis, residual_analysis
+from torchpaml._diagnostics.analysis.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.results import ModelScore
-from torchpaml._diagnostics.validity import AmplitudeBins, error_by_amplitude
+from torchpaml._diagnostics.analysis.validity import AmplitudeBins, error_by_amplitude
 from torchpaml._metrics import channel_mismatch
 
 __all__ = ["ChannelScore", "channel_scores", "shows_most"]

@@ -15,10 +15,10 @@ from dataclasses import dataclass
 import torch
 
 from torchpaml._data import Record
-from torchpaml._diagnostics.ranker import Ranker
-from torchpaml._diagnostics.ranking import placed
+from torchpaml._diagnostics.ranking.ranker import Ranker
+from torchpaml._diagnostics.ranking.steps import placed
 from torchpaml._diagnostics.results import ModelScore, Ranking
-from torchpaml._diagnostics.scoring import as_records
+from torchpaml._diagnostics.ranking.scoring import as_records
 from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import AbstractEffect

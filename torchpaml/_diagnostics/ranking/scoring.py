@@ -9,7 +9,7 @@ import torch
 from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
 from torchpaml._diagnostics.results import ModelScore
-from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state
 from torchpaml._metrics import mismatch

@@ -12,11 +12,11 @@ import torch
 
 from torchpaml._budget import REFIT_BUDGET, RUNG_FIT_BUDGET, Budget
 from torchpaml._data import Record
-from torchpaml._diagnostics.ranking import applicable, refit_shortlist, rung_fit, scored
-from torchpaml._diagnostics.refits import Refits, free_shape
-from torchpaml._diagnostics.scoring import as_records, score_model
+from torchpaml._diagnostics.ranking.steps import applicable, refit_shortlist, rung_fit, scored
+from torchpaml._diagnostics.ranking.refits import Refits, free_shape
+from torchpaml._diagnostics.ranking.scoring import as_records, score_model
 from torchpaml._diagnostics.results import EffectEvidence, Ranking
-from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._errors import ConfigurationError
 from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
 from torchpaml._parameters import unphysical_values
@@ -26,7 +26,7 @@ from torchpaml._simulate.solvers import Solver
 
 __all__ = ["Ranker", "rank_missing_effects"]
 
-log = logging.getLogger("torchpaml._diagnostics.ranking")
+log = logging.getLogger("torchpaml._diagnostics.ranking.steps")
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ class Ranker:
              validation: Record | Sequence[Record], *, initial_state: InitialState = Rest(),
              start_states: Sequence[torch.Tensor] | None = None, deadline: float | None = None,
              solver: Solver | None = None, refitted: EffectEvidence | None = None) -> Ranking:
-        """Rank ``candidates`` as the effect missing from ``physics`` (:mod:`~torchpaml._diagnostics.ranking`).
+        """Rank ``candidates`` as the effect missing from ``physics`` (:mod:`~torchpaml._diagnostics.ranking.steps`).
 
         Args:
             physics: the physics to diagnose (not modified: a copy is fitted). Its learnable parameters

@@ -1,4 +1,4 @@
-"""The shortlist's refits (the ranking's step 3, :mod:`~torchpaml._diagnostics.ranking`): which candidates are
+"""The shortlist's refits (the ranking's step 3, :mod:`~torchpaml._diagnostics.ranking.steps`): which candidates are
 refitted (:func:`cannot_pass`), each from its first-order start (:func:`refit_effect`) within its budget
 (:class:`Refits`), and the best one's shape freed (:func:`free_shape`)."""
 
@@ -15,10 +15,10 @@ from torchpaml._physics.base import AbstractPhysics
 from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
-from torchpaml._diagnostics.probes import assigned
+from torchpaml._diagnostics.ranking.probes import assigned
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore
-from torchpaml._diagnostics.scoring import score_model
-from torchpaml._diagnostics.selection import SelectionRule
+from torchpaml._diagnostics.ranking.scoring import score_model
+from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._fit.initial_state import InitialState, as_initial_state
 from torchpaml._fit.physics_fit import PhysicsEstimate, fit_physics

@@ -1,0 +1,1 @@
+"""How the physics compares with the measurements and where it fails: the analyses a diagnosis composes."""

@@ -1,0 +1,1 @@
+"""A force outside the library: the neural rate, the sparse regression and the closed forms' search."""
