@@ -52,6 +52,7 @@ tables: install
 
 bench: install-fleet
 	$(PYTHON) benchmarks/bench_simulation.py
+	$(PYTHON) benchmarks/bench_step_control.py
 	$(PYTHON) benchmarks/bench_reproduction.py
 	$(PYTHON) benchmarks/bench_ranking.py
 	$(PYTHON) benchmarks/bench_discovery.py

@@ -17,6 +17,7 @@ import warnings
 
 from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Files, Record, RecordSource, Simulated, simulate_record
+from torchpaml._data import Experiment, ExperimentSource  # noqa: F401  the earlier names of Record, RecordSource
 from torchpaml._diagnostics import (
     Adequacy,
     Diagnosis,

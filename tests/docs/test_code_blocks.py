@@ -42,4 +42,4 @@ def test_code_blocks_run(page: Path, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     namespace: dict = {"__name__": "__docs__"}
     for i, block in enumerate(code_blocks(page.read_text())):
-        exec(compile(block, f"{page.name}[block {i}]", "exec"), namespace)
+        exec(compile(block, f"{page.name}[block {i}]", "exec", dont_inherit=True), namespace)  # as a script: no future flags
