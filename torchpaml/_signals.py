@@ -83,15 +83,21 @@ def chirp(t: torch.Tensor, amplitude: float, f0: float, f1: float, method: str =
     return (amplitude * torch.from_numpy(u))[None, :, None]
 
 
+def _flat(x) -> np.ndarray:
+    """A tensor or array of one channel, (time,) or (1, time, 1), as a float array (time,)."""
+    x = x.detach().cpu().numpy() if isinstance(x, torch.Tensor) else np.asarray(x)
+    return x.astype(float).reshape(-1)
+
+
 def amplitude_spectrum(t, signal) -> tuple[np.ndarray, np.ndarray]:
     r"""The one-sided amplitude spectrum of ``signal`` (time,) on the uniform grid ``t`` (time,): the frequencies
     $\omega_k$ in rad/s and $2|X_k|/N$ (a sine of amplitude $a$ on a bin shows $a$)."""
-    t, x = np.asarray(t, dtype=float), np.asarray(signal, dtype=float)
+    t, x = _flat(t), _flat(signal)
     return 2 * math.pi * np.fft.rfftfreq(len(x), d=float(t[1] - t[0])), 2 * np.abs(np.fft.rfft(x)) / len(x)
 
 
 def dominant_frequency(t, u) -> float:
-    """The frequency (rad/s) of the largest non-DC line of ``u``'s amplitude spectrum (``u`` (time,))."""
-    u = np.asarray(u, dtype=float)
+    """The frequency (rad/s) of the largest non-DC line of ``u``'s amplitude spectrum (``u`` (time,) or (1, time, 1))."""
+    u = _flat(u)
     frequencies, amplitude = amplitude_spectrum(t, u - u.mean())
     return float(frequencies[1 + int(np.argmax(amplitude[1:]))])

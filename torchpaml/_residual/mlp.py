@@ -68,7 +68,13 @@ class MLPResidual(AbstractResidual):
 
 
 class MLPForce(nn.Module):
-    r"""A learned force $\mathrm{MLP}(x/s_x, v/s_v, u/s_u)$; x, v, u (batch,) -> (batch,). Starts at zero."""
+    r"""A learned force $\mathrm{MLP}(x/s_x, v/s_v, u/s_u)$; x, v, u (batch,) -> (batch,). Starts at zero.
+
+    Attributes:
+        alpha: ``None``: a learned force has no Chebyshev domain (:class:`~torchpaml.AbstractResidual`'s).
+    """
+
+    alpha: float | None = None
 
     def __init__(self, hidden: int = 32, depth: int = 2, *, x_scale: float = 1.0, v_scale: float = 1.0, u_scale: float = 1.0):
         super().__init__()
