@@ -43,6 +43,7 @@ from torchpaml._errors import (
 )
 from torchpaml._fit import (
     Estimate,
+    FittedModel,
     InitialState,
     PhysicsEstimate,
     ResidualEstimate,
@@ -95,7 +96,7 @@ __all__ = [
     # simulation
     "simulate", "simulate_record", "Solver", "FixedStep", "Auto", "Exact", "RK4", "TRBDF2", "Dopri5",
     # fitting
-    "fit_physics", "PhysicsEstimate", "InitialState", "Rest", "Estimate", "Budget", "OverBudget", "Uncertainty",
+    "fit_physics", "PhysicsEstimate", "FittedModel", "InitialState", "Rest", "Estimate", "Budget", "OverBudget", "Uncertainty",
     "IdentifiabilityWarning", "estimate_initial_state", "fit_chebyshev_hammerstein", "fit_residual",
     "ResidualEstimate", "fit_neural_force", "reestimate_shift",
     # residuals

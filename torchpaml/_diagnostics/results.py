@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import torch
 
 from torchpaml._diagnostics.ranking.selection import SelectionRule
+from torchpaml._fit.fitted_model import FittedModel
 from torchpaml._fit.initial_state import InitialState, Rest
 from torchpaml._fit.physics_fit import PhysicsEstimate
 from torchpaml._parameters import with_uncertainty
@@ -42,6 +43,12 @@ class ModelScore:
     interval: dict[str, tuple[float, float]] = field(default_factory=dict, repr=False)
     #: the fit scored (:class:`~torchpaml.PhysicsEstimate`): its residual and Jacobian start a ranking on this model
     estimate: PhysicsEstimate | None = field(default=None, repr=False)
+
+    @property
+    def fitted(self) -> FittedModel:
+        """The scored model with its solver, one value that simulates a record as it was scored
+        (``score.fitted.simulate(record)``)."""
+        return FittedModel(self.model, self.solver)
 
     def rows(self) -> list[dict]:
         """The model's parameter rows (:func:`~torchpaml._parameters.describe_parameters`) with the fit's standard

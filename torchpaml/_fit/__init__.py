@@ -2,6 +2,7 @@
 neural force and sparse regression of discovery."""
 
 from torchpaml._fit.first_order import reestimate_shift
+from torchpaml._fit.fitted_model import FittedModel
 from torchpaml._fit.initial_state import Estimate, InitialState, Rest
 from torchpaml._fit.neural_force import NeuralForceFit, fit_neural_force
 from torchpaml._fit.physics_fit import PhysicsEstimate, estimate_initial_state, fit_physics
@@ -13,6 +14,7 @@ from torchpaml._fit.residual_fit import (
 )
 
 __all__ = [
+    "FittedModel",
     "Estimate",
     "InitialState",
     "NeuralForceFit",

@@ -31,7 +31,7 @@ from __future__ import annotations
 import contextlib
 import copy
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import torch
@@ -40,6 +40,7 @@ from scipy.optimize import least_squares
 from torchpaml._budget import Budget
 from torchpaml._data import Record
 from torchpaml._errors import ConfigurationError, ResolutionError
+from torchpaml._fit.fitted_model import FittedModel
 from torchpaml._fit.initial_state import Estimate, InitialState, Rest, as_initial_state
 from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solver
 from torchpaml._fit.trust_region import TrustRegionProblem
@@ -69,6 +70,7 @@ class PhysicsEstimate:
         uncertainty: standard errors, 95 % intervals and the identifiability check of ``parameters``
             (and of the initial states, named ``x0[record].state``, where they were estimated).
         initial_states: each record's initial state (n_state,): rest, or the estimate.
+        physics: the physics fitted (the module itself, its parameters at the optimum).
         solver: the solver the fit ended with (the step check; :meth:`~torchpaml.Solver.simulating`): a fixed-step
             method at whole substeps, or ``Exact()`` where every record takes the exact path. Simulate the fitted
             model with it to simulate it as the fit did; fit a model built on this one with ``Auto(start=solver)`` to
@@ -83,6 +85,13 @@ class PhysicsEstimate:
     uncertainty: Uncertainty
     initial_states: list[torch.Tensor]
     solver: Solver
+    physics: AbstractPhysics | None = field(default=None, repr=False)
+
+    @property
+    def model(self) -> FittedModel:
+        """The fitted physics with its solver, one value that simulates a record as the fit did
+        (``fit.model.simulate(record, fit.initial_states[i])``)."""
+        return FittedModel(self.physics, self.solver)
 
 
 def _raw_bounds(physics: AbstractPhysics, names: list[str], bounds: dict[str, tuple[float,
@@ -223,7 +232,7 @@ def _estimate(problem: TrustRegionProblem, x: np.ndarray) -> PhysicsEstimate:
     warn_if_unidentifiable(uncertainty, physics.display_name)
     return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,
                            jacobian, problem.simulations, uncertainty, initial_states,
-                           _simulating(problem.solver, physics, records))
+                           _simulating(problem.solver, physics, records), physics)
 
 
 def _simulating(solver: Solver, physics: AbstractPhysics, records: list[Record]) -> Solver:
