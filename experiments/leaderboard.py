@@ -11,7 +11,7 @@
 
 ``models`` goes from the linear physics to the final grey box; ``hybrid`` is the final model with the orthogonal
 residual of the paper on top (:func:`torchpaml.analysis.hybrid_residual`, fitted on the training records only), ``accepted``
-from its inadequacy alarm on validation, and an RMSE of ``null`` where a test input leaves the residual's domain.
+where the final rung's alarm recommends it (neither inadequate nor complete physics), and an RMSE of ``null`` where a test input leaves the residual's domain.
 ``goal`` holds the benchmark's goal on its headline split (:func:`goal_entry`): the figure that counts (the hybrid's
 where its alarm accepts it, else the final grey box's), whether it meets the goal, and what limits it: one of
 :data:`LIMITS`, with the measured numbers that show it.
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import torch
 
-from torchpaml import DomainError, ModelScore, Record, simulate_record
+from torchpaml import Adequacy, DomainError, ModelScore, Record, simulate_record
 from torchpaml.analysis import hybrid_residual
 
 __all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "model_entry", "protocol",
@@ -60,12 +60,16 @@ def model_entry(step: ModelScore, uncertainty: dict, rmse: dict[str, float]) -> 
             "rmse": rmse}
 
 
-def hybrid_entry(step: ModelScore, train: list[Record], alpha: float, accepted: bool, reason: str,
+def hybrid_entry(step: ModelScore, train: list[Record], alpha: float, alarm: Adequacy,
                  tests: dict[str, tuple[Record, torch.Tensor | None]],
                  score: Callable[[Record, torch.Tensor], float]) -> dict:
     """The final model ``step`` plus the Chebyshev-Hammerstein residual fitted on its training residual, scored on
     each test record from its initial state by ``score(record, y_model)`` (the benchmark's metric over the scored
-    samples); ``None`` where the test input leaves the residual's domain ``alpha``."""
+    samples); ``None`` where the test input leaves the residual's domain ``alpha``. ``accepted`` where the
+    diagnosis' alarm on the final rung (``alarm``) recommends the hybrid: neither inadequate physics (the residual
+    would hide it) nor complete physics (its residual is noise the orthogonal residual cannot reduce: the diagnosis
+    says to use the physics alone, and a residual fitted to that noise scores by chance); ``reason``: its message."""
+    accepted, reason = not alarm.inadequate and not alarm.complete, alarm.message
     residual, _ = hybrid_residual(step, train, alpha)
     rmse = {}
     for name, (record, x0) in tests.items():

@@ -129,7 +129,7 @@ def main(argv: list[str] | None = None) -> dict:
                        "uncertainty": rung["uncertainty"], "substeps": step.solver.substeps, "rmse": rmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3e} m" for k, v in rmse.items()), flush=True)
     final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy
-    hybrid = hybrid_entry(final, [train], alpha, not alarm.inadequate, alarm.message,
+    hybrid = hybrid_entry(final, [train], alpha, alarm,
                           {"test_multisine": (twice(tests["test_multisine"]), None),
                            "test_sinesweep": (tests["test_sinesweep"], None)}, scored_rmse)
     result = {"schema_version": SCHEMA_VERSION, "benchmark": "boucwen",

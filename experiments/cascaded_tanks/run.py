@@ -142,7 +142,7 @@ def main(argv: list[str] | None = None) -> dict:
                        "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}})
         print(f"{step.name}: test RMSE {rmse:.3f} V", flush=True)
     final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy
-    hybrid = hybrid_entry(final, [train], alpha, not alarm.inadequate, alarm.message,
+    hybrid = hybrid_entry(final, [train], alpha, alarm,
                           {"test": (test, final.train_states[0])},
                           lambda record, y: float((record.y - y)[:, 0].square().mean().sqrt()))
     spill = None if args.free_spill else free_spill(final, train, test)

@@ -124,7 +124,7 @@ def main(argv: list[str] | None = None) -> dict:
         models.append(model_entry(step, rung["uncertainty"], {"test": position_rmse_mm(test, y)}))
         print(f"{step.name}: test RMSE {models[-1]['rmse']['test']:.2f} mm", flush=True)
     final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy
-    hybrid = hybrid_entry(final, [train], alpha, not alarm.inadequate, alarm.message,
+    hybrid = hybrid_entry(final, [train], alpha, alarm,
                           {"test": (test, test_start(final.model, final.solver, test))}, position_rmse_mm)
     print(f"{hybrid['model']}: test RMSE {hybrid['rmse']['test']} mm, accepted: {hybrid['accepted']}", flush=True)
     result = {"schema_version": SCHEMA_VERSION, "benchmark": "emps",

@@ -175,7 +175,7 @@ def main(argv: list[str] | None = None) -> dict:
                        "nrmse": nrmse})
         print(f"{step.name}: " + ", ".join(f"{k} {v:.3f} mV" for k, v in rmse.items()), flush=True)
     final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy
-    hybrid = hybrid_entry(final, [train], alpha, not alarm.inadequate, alarm.message,
+    hybrid = hybrid_entry(final, [train], alpha, alarm,
                           {name: (r, test_start(final.model, final.solver, r)) for name, r in tests.items()},
                           output_rmse_mv)
     result = {"schema_version": SCHEMA_VERSION, "benchmark": "silverbox",

@@ -105,14 +105,16 @@ class Secant:
     """Outputs of ``base + effect`` near the base, by simulations in the shooting engine warm-started from the base's trajectory.
 
     For a nonlinear base (or non-uniform records), where :class:`TangentLinear` does not apply; ``solver``: the
-    solver the base was fitted with, at whose resolution the probes simulate (:meth:`~torchpaml.Solver.states`). A probe
+    solver the base was fitted with, whose fixed-step method (:meth:`~torchpaml.Solver.stepping`) simulates the base
+    and every probe alike, so that a probe at strength 0 reproduces the base's output (the exact path of a linear
+    base would differ from the probes' steps by the method's error). A probe
     at a small strength stays close to the base, so Newton, started from the base's converged states,
     needs a sweep or two instead of the several of a cold start.
     """
 
     def __init__(self, base: AbstractPhysics, train: list[Record], initial_states: list[torch.Tensor],
                  solver: Solver):
-        self.records, self.solver = [], Auto(start=solver)
+        self.records, self.solver = [], Auto(start=solver).stepping()  # the base and its probes by one method
         with torch.no_grad():
             for record, x0 in zip(train, initial_states, strict=True):
                 t, u, start, hold = record.elapsed, record.u[None], x0.reshape(1, -1), record.hold
