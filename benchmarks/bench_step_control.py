@@ -12,33 +12,15 @@ and gaps. One thread.
 """
 
 import argparse
-import time
 
 import torch
 
 from torchpaml import RK4, CubicStiffness, Dopri5, Exact, Oscillator, simulate
 from torchpaml._simulate import step_control
 
+from bench_simulation import best, forward, forward_gradient  # the same timing as the simulation benchmark's
+
 RTOL = 1e-3
-
-
-def best(work, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - start)
-    return min(times)
-
-
-def forward(physics, t, u, **options):
-    with torch.no_grad():
-        return simulate(physics, t, u, **options)
-
-
-def forward_gradient(physics, t, u, **options):
-    physics.zero_grad()
-    simulate(physics, t, u, **options).square().sum().backward()
 
 
 def main() -> None:
@@ -66,9 +48,11 @@ def main() -> None:
         print(f"{name:>17}: exact {exact:.4f} s; default {default:.3f} s ({default / exact:.0f}x); "
               f"RK4(substeps=1) {fixed:.3f} s ({fixed / exact:.0f}x)")
     short = slice(0, args.error_samples)
-    reference = forward(hard, t[short], u[:, short], solver=Dopri5(rtol=1e-11, atol=1e-12))
+    with torch.no_grad():
+        reference = simulate(hard, t[short], u[:, short], solver=Dopri5(rtol=1e-11, atol=1e-12))
     for name, solver in (("default", None), ("RK4(substeps=1)", RK4(substeps=1))):
-        y = forward(hard, t[short], u[:, short], solver=solver)
+        with torch.no_grad():
+            y = simulate(hard, t[short], u[:, short], solver=solver)
         error = float((y - reference).norm() / reference.norm())
         print(f"error of {name} on {args.error_samples} samples: {error:.2e} (rtol {RTOL:g}: {error / RTOL:.2g} of it)")
 
