@@ -68,7 +68,8 @@ class Discoverer:
             ranking: a ranking (the ladder's last): its baseline is the fitted physics to extend, its best refitted
                 physical entry the library's best effect; its ``rule`` judges the closed form, and its
                 ``initial_state`` applies.
-            train, validation: the records the ranking was made on.
+            train: the training records the ranking was made on.
+            validation: the validation records the ranking was made on.
             deadline: a ``time.perf_counter()`` time by which the search ends (the diagnosis' ``budget``).
             complete: whether the ranking's rung is complete at the noise level (``Adequacy.complete``).
         """
