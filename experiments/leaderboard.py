@@ -69,7 +69,7 @@ def hybrid_entry(step: ModelScore, train: list[Record], alpha: float, alarm: Ade
     diagnosis' alarm on the final rung (``alarm``) recommends the hybrid: neither inadequate physics (the residual
     would hide it) nor complete physics (its residual is noise the orthogonal residual cannot reduce: the diagnosis
     says to use the physics alone, and a residual fitted to that noise scores by chance); ``reason``: its message."""
-    accepted, reason = not alarm.inadequate and not alarm.complete, alarm.message
+    accepted, reason = alarm.recommends_hybrid, alarm.message
     residual, _ = hybrid_residual(step, train, alpha)
     rmse = {}
     for name, (record, x0) in tests.items():

@@ -28,6 +28,7 @@ __all__ = [
     "PhysicalParameter",
     "Positive",
     "Real",
+    "constrain",
     "copied_with_own_parametrizations",
     "describe_parameters",
     "format_table",
@@ -130,6 +131,16 @@ def register_parameters(module: nn.Module, declarations: list[PhysicalParameter]
         module.register_parameter(d.name, nn.Parameter(torch.tensor(float(d.value), dtype=torch.float64)))
         parametrize.register_parametrization(module, d.name, constraint, unsafe=True)
         getattr(module.parametrizations, d.name).original.requires_grad_(d.name in learn)
+
+
+def constrain(module: nn.Module, name: str, constraint: nn.Module) -> None:
+    """Give the declared parameter ``name`` of ``module`` the ``constraint`` map from now on, keeping its value and its
+    learnable flag."""
+    learn = getattr(module.parametrizations, name).original.requires_grad
+    parametrize.remove_parametrizations(module, name, leave_parametrized=True)
+    parametrize.register_parametrization(module, name, constraint, unsafe=True)
+    getattr(module.parametrizations, name).original.requires_grad_(learn)
+    module._physical[name] = replace(module._physical[name], constraint=constraint)
 
 
 def copied_with_own_parametrizations(module: nn.Module, memo: dict) -> nn.Module:

@@ -131,7 +131,7 @@ class Record:
     # -- I/O ---------------------------------------------------------------------------------
     @classmethod
     def from_csv(cls, path: str | Path, name: str | None = None, hold: str | None = None,
-                 channels: tuple[Sequence[str], Sequence[str]] | None = None) -> Record:
+                 channels: tuple[Sequence[str], Sequence[str]] | None = None, with_outputs: bool = True) -> Record:
         """Read a CSV whose header holds ``t`` and the channels (a first ``# {json}`` line is metadata; extra columns
         are ignored):
 
@@ -141,7 +141,9 @@ class Record:
         * named channels that ``channels`` expects, ``(input names, output names)`` (a physics' ``input_names`` and
           ``output_names``), as data loggers write them: ``t,force,x1,x2`` with no metadata line.
 
-        ``hold``: how the input moved between samples; default the metadata's ``"hold"``, else ``"foh"``."""
+        ``hold``: how the input moved between samples; default the metadata's ``"hold"``, else ``"foh"``.
+        ``with_outputs=False``: a file of inputs alone (a model's prediction needs no outputs): where its output columns are
+        missing, ``y`` is zeros, one column per expected output, and the metadata says ``"outputs_missing": true``."""
         path = Path(path)
         if not path.exists():
             raise DataError(f"no such file: {path}" + ("" if path.is_absolute() else f" (in the folder {Path.cwd()})"))
@@ -153,7 +155,12 @@ class Record:
         if not lines or not lines[0].strip():
             raise DataError(f"{path} is empty; expected a header 't,u,y' followed by one row per sample")
         header = [h.strip() for h in lines[0].split(",")]
-        inputs, outputs = _channels(header, metadata, path, channels)
+        missing = not with_outputs and not _has_outputs(header, metadata, channels)
+        if missing:
+            expected = list(channels[1]) if channels and channels[1] else metadata.get("outputs", ["y"])
+            header_names = [*header, *expected]
+            metadata = {**metadata, "outputs_missing": True}
+        inputs, outputs = _channels(header_names if missing else header, metadata, path, channels)
         for key, names, given in (("inputs", inputs, channels[0] if channels else ()),
                                   ("outputs", outputs, channels[1] if channels else ())):
             if key not in metadata and given and names == list(given):
@@ -168,6 +175,7 @@ class Record:
         if table.ndim != 2 or table.shape[1] != len(header):
             raise DataError(f"{path}: every row must have {len(header)} values like the header")
         columns = {h: table[:, i] for i, h in enumerate(header)}
+        columns.update({name: np.zeros(len(table)) for name in outputs if missing})
         return cls(columns["t"], np.stack([columns[c] for c in inputs], axis=1),
                    np.stack([columns[c] for c in outputs], axis=1), name or path.stem, metadata,
                    hold or metadata.get("hold", "foh"))
@@ -229,6 +237,12 @@ def _column_names(declared: list[str] | None, letter: str, count: int) -> list[s
     """The channels' names where the metadata declares one per column, else ``u`` (one) or ``u1, u2, …``: what a
     message names a column by, before the names are checked (:func:`_names`)."""
     return _names(declared if declared is not None and len(declared) == count else None, letter, count)
+
+
+def _has_outputs(header: list[str], metadata: dict, expected: tuple[Sequence[str], Sequence[str]] | None) -> bool:
+    """Whether ``header`` holds any output column: those the metadata or ``expected`` names, ``y``, or ``y1, y2, …``."""
+    named = set(metadata.get("outputs", [])) | set(expected[1] if expected else ())
+    return any(h in named or re.fullmatch(r"y\d*", h) for h in header)
 
 
 def _channels(header: list[str], metadata: dict, path: Path,

@@ -56,6 +56,7 @@ from torchpaml._data.simulation import simulate_record
 from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein, joined_in_time, per_record
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters
+from torchpaml._fit.fitted_model import FittedModel
 from torchpaml._fit.initial_state import InitialState, Rest
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.checks import check_channels, check_physics, check_time_scale
@@ -93,6 +94,8 @@ class HybridScore:
     physics_validation: float
     hybrid_validation: float
     adequacy: Adequacy
+    #: the fitted Chebyshev-Hammerstein residual
+    residual: ChebyshevHammerstein | None = field(default=None, repr=False)
 
 
 @dataclass
@@ -119,6 +122,34 @@ class Diagnosis:
         """The output channel where the effects the ladder added lowered the mismatch most (where it added none: where
         the physics fails most)."""
         return shows_most(self.channels, bool(self.ladder.added))
+
+    @property
+    def final(self) -> ModelScore:
+        """The model the diagnosis ends with: the discovery's closed form where it recommends it, else the ladder's
+        last rung."""
+        found = self.discovery
+        return found.discovered if found is not None and found.recommended and found.discovered else self.ladder.final
+
+    @property
+    def model(self) -> FittedModel:
+        """:attr:`final` as one value to save, load and run (:func:`~torchpaml.save_model`): with its solver, the
+        validation records' channels and hold, the initial-state policy and the fit's uncertainty."""
+        return self._fitted(self.final)
+
+    @property
+    def hybrid(self) -> FittedModel | None:
+        """The ladder's last rung with the Chebyshev residual on top where its alarm recommends the hybrid
+        (:attr:`~torchpaml.Adequacy.recommends_hybrid`), else ``None``."""
+        last = self.hybrids[-1]
+        if not last.adequacy.recommends_hybrid or last.residual is None:
+            return None
+        return self._fitted(self.ladder.final, last.residual)
+
+    def _fitted(self, score: ModelScore, residual: ChebyshevHammerstein | None = None) -> FittedModel:
+        record = self.validation[0]
+        return FittedModel(score.model, score.solver, residual, tuple(record.input_names),
+                           tuple(record.output_names), record.hold, self.ladder.rankings[-1].initial_state,
+                           None if score.estimate is None else score.estimate.uncertainty)
 
     @property
     def baseline(self) -> ModelScore:
@@ -250,7 +281,8 @@ def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alp
     noise, linear_share = _noise_like(train[0], joined_in_time(y_physics)[0, :len(train[0].t)])
     adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
                                residual_white=noise, linear_share=linear_share)
-    return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy)
+    return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy,
+                       residual)
 
 
 #: The keywords :func:`diagnose` took before its stages were objects, and the stage each now belongs to.

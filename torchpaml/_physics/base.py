@@ -32,17 +32,16 @@ then uses the exact discretisation instead of an ODE solver.
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import torch
 from torch import nn
 from torch.nn.utils import parametrize
 
+from torchpaml._arguments import Rebuildable
 from torchpaml._errors import ConfigurationError
 from torchpaml._simulate.dynamics import complete_state
 from torchpaml._simulate.simulator import simulate
-from torchpaml._parameters import (Interval, copied_with_own_parametrizations, declared, describe_parameters,
-                                  format_table, with_uncertainty)
+from torchpaml._parameters import (Interval, constrain, copied_with_own_parametrizations, declared,
+                                  describe_parameters, format_table, with_uncertainty)
 
 __all__ = ["AbstractPhysics", "SecondOrderPhysics", "complete_state", "state_vector"]
 
@@ -57,7 +56,7 @@ def state_vector(columns: list[torch.Tensor]) -> torch.Tensor:
     return torch.stack(columns).movedim(0, -1)
 
 
-class AbstractPhysics(nn.Module):
+class AbstractPhysics(Rebuildable, nn.Module):
     """Abstract ODE physics $\\dot x = f(t, x, u)$, $y = h(x, u)$. Subclasses define the two maps.
 
     A physics holds its parameters and its equations, not an integrator: calling it, ``physics(t, u)``, simulates it
@@ -173,11 +172,7 @@ class AbstractPhysics(nn.Module):
             interval.check(name, value)
         except ValueError as err:
             raise ConfigurationError(f"{err}; start {name} inside the bounds, e.g. assign({name}=...)") from None
-        learn = getattr(owner.parametrizations, leaf).original.requires_grad
-        parametrize.remove_parametrizations(owner, leaf, leave_parametrized=True)
-        parametrize.register_parametrization(owner, leaf, interval, unsafe=True)
-        getattr(owner.parametrizations, leaf).original.requires_grad_(learn)
-        owner._physical[leaf] = replace(owner._physical[leaf], constraint=interval)
+        constrain(owner, leaf, interval)
         return self
 
     def _owner(self, name: str) -> tuple[nn.Module, str]:

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
+from torchpaml._arguments import Rebuildable
+
 from torchpaml._errors import ConfigurationError
 from torchpaml._parameters import copied_with_own_parametrizations
 from torchpaml._physics.base import state_vector
@@ -28,7 +30,7 @@ class EffectState:
     meaning: str = ""
 
 
-class AbstractEffect(nn.Module):
+class AbstractEffect(Rebuildable, nn.Module):
     """An effect added to physics with ``+`` (module docstring). Override any of the four hooks:
 
     * ``force(physics, x, v, u)``: an extra acceleration (batch,) from x, v, u (batch,) of a mechanical degree of

@@ -7,6 +7,8 @@ Layout of ``out``::
     discovered_effect.yaml   the discovered force as a config block (``candidates:`` of a --config), when one was found
     figures/NAME.png    compare, residual_analysis, error_by_amplitude, ranking, ladder (and discovery)
     report.html         the story in one page, showing the figures
+    model.pt            the final model (torchpaml.load_model), where a model file can keep it
+    hybrid.pt           the final rung with the Chebyshev residual on top, where the alarm recommends the hybrid
     tensorboard/        scalars ladder/nrmse_validation and ladder/nrmse_train (one point per rung),
                         ranking/score/EFFECT, discovery/nrmse_validation/{physics, library_best, neural,
                         discovered}, the figures under diagnose/, the verdict, the final equation and the
@@ -17,6 +19,7 @@ from __future__ import annotations
 
 import html
 import json
+import warnings
 from pathlib import Path
 
 import yaml
@@ -24,6 +27,8 @@ from torch.utils.tensorboard import SummaryWriter
 
 from torchpaml._diagnostics.diagnosis import Diagnosis
 from torchpaml._diagnostics.results import ModelScore
+from torchpaml._errors import ConfigurationError
+from torchpaml._model.file import save_model
 from torchpaml._render.figures import diagnosis_figures
 from torchpaml._render.schema import diagnosis_to_dict
 
@@ -42,6 +47,7 @@ def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
     _tensorboard(diagnosis, content, figures, out / "tensorboard")
     path = out / "diagnosis.json"
     path.write_text(json.dumps(content, indent=2))
+    _save_models(diagnosis, out)
     discovery = diagnosis.discovery
     if discovery is not None:
         (out / "discovery.json").write_text(json.dumps(content["discovery"], indent=2))
@@ -50,6 +56,19 @@ def write_report(diagnosis: Diagnosis, out: str | Path) -> Path:
                 f"# {discovery.text}\n# add to `candidates:` of a `torchpaml diagnose --config` file\n"
                 + yaml.safe_dump([discovery.effect.to_config()], sort_keys=False))
     return path
+
+
+def _save_models(diagnosis: Diagnosis, out: Path) -> None:
+    """``model.pt`` and, where the alarm recommends the hybrid, ``hybrid.pt`` (a ``hybrid.pt`` of an earlier run is
+    removed where it does not); a model a file cannot keep is reported in a warning and skipped."""
+    for name, model in (("model.pt", diagnosis.model), ("hybrid.pt", diagnosis.hybrid)):
+        (out / name).unlink(missing_ok=True)
+        if model is None:
+            continue
+        try:
+            save_model(model, out / name)
+        except ConfigurationError as reason:
+            warnings.warn(f"{name} not written: {reason}", stacklevel=3)
 
 
 def _tensorboard(diagnosis: Diagnosis, content: dict, figures: dict, folder: Path) -> None:

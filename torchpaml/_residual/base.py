@@ -5,10 +5,12 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from torchpaml._arguments import Rebuildable
+
 __all__ = ["AbstractResidual"]
 
 
-class AbstractResidual(nn.Module):
+class AbstractResidual(Rebuildable, nn.Module):
     r"""An output residual $r = \mathcal R^\gamma[u]$, added to the physics output: $y \approx \hat y + r$.
 
     ``forward(t, u, y_physics)`` maps t (time,), u (batch, time, n_u) and the physics output

@@ -7,6 +7,7 @@ import json
 import time
 from pathlib import Path
 
+from torchpaml._errors import ConfigurationError
 from torchpaml.cli.progress import progress_lines
 
 __all__ = ["run_command"]
@@ -16,7 +17,7 @@ DESCRIPTION = """Physics-augmented learning of input-driven dynamical systems.
 commands:
   diagnose   find the effect a physics model is missing (torchpaml diagnose --help)
   fleet      diagnose every unit of a fleet on Ray, and see which ones changed (torchpaml fleet --help)
-  simulate   write noisy measurements of library physics plus effects
+  simulate   write noisy measurements of library physics plus effects, or (--model) a saved model's prediction
   paper      reproduce the paper's numerical results
   fit, validate, test
              train, validate or test a Lightning system from a config (torchpaml fit --help)
@@ -41,6 +42,11 @@ def _paper(args: argparse.Namespace) -> None:
 
 
 def _simulate(args: argparse.Namespace) -> None:
+    if args.model is not None:
+        return _predict(args)
+    if args.physics is None:
+        raise ConfigurationError("simulate needs --physics (library physics to simulate) or --model (a saved model to "
+                                 "run on --data)")
     from torchpaml._data import Simulated
     from torchpaml._physics.registry import build_model, parse_assignments
 
@@ -53,8 +59,32 @@ def _simulate(args: argparse.Namespace) -> None:
     print(f"wrote {record.to_csv(args.out)}: {len(record.t)} samples of {model.display_name}")
 
 
+def _predict(args: argparse.Namespace) -> None:
+    """``simulate --model FILE --data CSV --out CSV``: the saved model's outputs and states on the record's input
+    (:func:`~torchpaml.predict`), with ``--band LEVEL`` its output band."""
+    from torchpaml._data import Record
+    from torchpaml._model import load_model, predict
+    from torchpaml._render.prediction import write_prediction
+
+    if args.data is None:
+        raise ConfigurationError("simulate --model needs --data: a CSV with t and the model's input columns")
+    model = load_model(args.model)
+    record = Record.from_csv(args.data, channels=(model.inputs, model.outputs), hold=args.hold,
+                             with_outputs=False)
+    prediction = predict(model, record, args.band)
+    path = write_prediction(model, record, prediction, args.out)
+    print(f"wrote {path}: {len(record.t)} samples of {model.physics.equation()} from {args.model}")
+
+
 def _simulate_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--physics", required=True, help="library physics: oscillator or pendulum")
+    parser.add_argument("--physics", help="library physics: oscillator or pendulum")
+    parser.add_argument("--model", help="a saved model (model.pt of torchpaml diagnose) to run on --data instead")
+    parser.add_argument("--data", help="with --model: CSV of t and the model's inputs (outputs, where present, "
+                        "start the record as the diagnosis did)")
+    parser.add_argument("--band", type=float, metavar="LEVEL",
+                        help="with --model: add the output band at this coverage (0.95) from the fit's covariance")
+    parser.add_argument("--hold", choices=["foh", "zoh"], help="with --model: how the input moved between samples "
+                        "(default: the file's metadata, else foh)")
     parser.add_argument("--set", action="append", metavar="NAME=VALUE", help="a parameter value (repeat)")
     parser.add_argument("--effect", action="append", metavar="EFFECT=STRENGTH",
                         help="add a library effect at this strength, e.g. cubic_stiffness=2 (repeat)")
@@ -65,7 +95,8 @@ def _simulate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dt", type=float, default=0.01, help="sampling interval, s (default 0.01)")
     parser.add_argument("--noise", type=float, default=0.0, help="output noise std as a fraction of RMS(y)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the signal and the noise")
-    parser.add_argument("--out", required=True, help="CSV file to write (header t,u,y; first line # metadata)")
+    parser.add_argument("--out", required=True, help="CSV file to write (header t,u,y; first line # metadata; with "
+                        "--model: t, the inputs, the outputs, the states and the band)")
     parser.set_defaults(run=_simulate)
 
 

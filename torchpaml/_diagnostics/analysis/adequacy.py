@@ -57,6 +57,12 @@ class Adequacy:
     covering: bool = False
     complete: bool = False
 
+    @property
+    def recommends_hybrid(self) -> bool:
+        """Whether the physics plus the residual is the model to use: neither inadequate physics (the residual would
+        hide it) nor complete physics (its residual is noise; a residual fitted to it scores by chance)."""
+        return not self.inadequate and not self.complete
+
 
 def assess_adequacy(
     physics_train: float,
