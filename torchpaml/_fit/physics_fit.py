@@ -89,9 +89,9 @@ class PhysicsEstimate:
 
     @property
     def model(self) -> FittedModel:
-        """The fitted physics with its solver, one value that simulates a record as the fit did
-        (``fit.model.simulate(record, fit.initial_states[i])``)."""
-        return FittedModel(self.physics, self.solver)
+        """The fitted physics with its solver and the fit's uncertainty, one value that simulates a record as the fit
+        did (``fit.model.simulate(record, fit.initial_states[i])``) and that :func:`~torchpaml.save_model` writes."""
+        return FittedModel(self.physics, self.solver, uncertainty=self.uncertainty)
 
 
 def _raw_bounds(physics: AbstractPhysics, names: list[str], bounds: dict[str, tuple[float,

@@ -1,0 +1,86 @@
+"""The model a diagnosis writes: ``model.pt`` reproduces the diagnosis' validation output bit for bit in a fresh
+process, ``torchpaml simulate --model`` predicts from it, and its refusals exit 2 in one line."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import torch
+
+from torchpaml import Record, load_model, predict
+
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
+ONE_THREAD = {**os.environ, "OMP_NUM_THREADS": "1"}
+
+
+def run(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "torchpaml", *args], capture_output=True, text=True, cwd=cwd,
+                          timeout=300, env=ONE_THREAD)
+
+
+@pytest.fixture(scope="module")
+def diagnosed(tmp_path_factory):
+    """An oscillator with a cubic stiffness diagnosed on the library physics: the folder with model.pt."""
+    folder = tmp_path_factory.mktemp("diagnosed")
+    for name, seed in (("train", 1), ("val", 2)):
+        done = run("simulate", "--physics", "oscillator", "--effect", "cubic_stiffness=2", "--duration", "30",
+                   "--dt", "0.05", "--noise", "0.01", "--seed", str(seed), "--out", f"{name}.csv", cwd=folder)
+        assert done.returncode == 0, done.stderr
+    done = run("diagnose", "--data", "train.csv", "--validation", "val.csv", "--physics", "oscillator",
+               "--effect", "cubic_stiffness", "--effect", "coulomb_friction", "--out", "out", "--quiet", cwd=folder)
+    assert done.returncode == 0, done.stderr
+    return folder
+
+
+def test_the_model_file_reproduces_the_validation_figure_bit_for_bit(diagnosed):
+    """A fresh process (one thread) loads model.pt and scores the validation record: the diagnosis' final figure."""
+    content = json.loads((diagnosed / "out" / "diagnosis.json").read_text())
+    final = content["ladder"][-1]
+    script = ("import torch, torchpaml as tp; torch.set_num_threads(1); m = tp.load_model('out/model.pt'); "
+              "r = tp.Record.from_csv('val.csv'); y = tp.predict(m, r).y; "
+              "print(repr(((r.y - y).square().sum() / r.y.square().sum()).sqrt().item()))")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, cwd=diagnosed,
+                          env=ONE_THREAD, timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert float(done.stdout) == final["nrmse_validation"]
+    assert "cubic_stiffness" in load_model(diagnosed / "out" / "model.pt").physics.effect_names()
+
+
+def test_simulate_with_a_model_writes_outputs_states_and_band(diagnosed):
+    done = run("simulate", "--model", "out/model.pt", "--data", "val.csv", "--band", "0.95", "--out", "pred.csv",
+               cwd=diagnosed)
+    assert done.returncode == 0, done.stderr
+    lines = (diagnosed / "pred.csv").read_text().splitlines()
+    metadata, header = json.loads(lines[0][2:]), lines[1].split(",")
+    model, record = load_model(diagnosed / "out" / "model.pt"), Record.from_csv(diagnosed / "val.csv")
+    states = [f"state_{name}" for name in model.physics.state_names]
+    assert header == ["t", "u", "y", *states, "y_lower", "y_upper"] and len(states) == 2
+    table = np.loadtxt(diagnosed / "pred.csv", delimiter=",", skiprows=2)
+    expected = predict(model, record, 0.95)
+    assert np.array_equal(table[:, 2], expected.y[:, 0].numpy()) and metadata["band_level"] == 0.95
+    assert np.all(table[:, 5] <= table[:, 2]) and np.all(table[:, 2] <= table[:, 6])
+    assert np.isfinite(table).all() and (table[:, 6] - table[:, 5]).max() > 0
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--model", "out/model.pt", "--out", "p.csv"], "simulate --model needs --data"),
+    (["--model", "out/absent.pt", "--data", "val.csv", "--out", "p.csv"], "no model file at out/absent.pt"),
+    (["--model", "val.csv", "--data", "val.csv", "--out", "p.csv"], "is not a torchpaml model file"),
+    (["--out", "p.csv"], "simulate needs --physics"),
+])
+def test_simulate_with_a_model_refuses_in_one_line(diagnosed, args, message):
+    done = run("simulate", *args, cwd=diagnosed)
+    assert done.returncode == 2 and message in done.stderr and len(done.stderr.strip().splitlines()) == 1
+    assert not (diagnosed / "p.csv").exists()
+
+
+def test_a_changed_model_file_is_refused_by_the_command(diagnosed):
+    stored = torch.load(diagnosed / "out" / "model.pt", weights_only=True)
+    stored["content"]["hold"] = "zoh"
+    torch.save(stored, diagnosed / "changed.pt")
+    done = run("simulate", "--model", "changed.pt", "--data", "val.csv", "--out", "p.csv", cwd=diagnosed)
+    assert done.returncode == 2 and "was changed after it was written" in done.stderr
