@@ -142,8 +142,9 @@ class Record:
           ``output_names``), as data loggers write them: ``t,force,x1,x2`` with no metadata line.
 
         ``hold``: how the input moved between samples; default the metadata's ``"hold"``, else ``"foh"``.
-        ``with_outputs=False``: a file of inputs alone (a model's prediction needs no outputs): where its output columns are
-        missing, ``y`` is zeros, one column per expected output, and the metadata says ``"outputs_missing": true``."""
+        ``with_outputs=False``: a file of inputs alone (a model's prediction needs no outputs): where its output
+        columns are missing, ``y`` is zeros, one column per expected output, and the metadata says
+        ``"outputs_missing": true``."""
         path = Path(path)
         if not path.exists():
             raise DataError(f"no such file: {path}" + ("" if path.is_absolute() else f" (in the folder {Path.cwd()})"))

@@ -111,13 +111,14 @@ def save_model(model: FittedModel, path: str | Path) -> Path:
 
 def _read(path: Path) -> dict:
     if not path.is_file():
-        raise ConfigurationError(f"no model file at {path}; torchpaml diagnose writes one as model.pt in its --out folder")
+        raise ConfigurationError(f"no model file at {path}; torchpaml diagnose writes one as model.pt in its --out "
+                                 "folder")
     try:
         stored = torch.load(path, weights_only=True)
     except Exception as error:  # noqa: BLE001 - torch reports a refused or damaged file in several exception types
         first = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-        raise ConfigurationError(f"{path} is not a torchpaml model file, or it carries code that loading refuses to run "
-                                 f"({first})") from None
+        raise ConfigurationError(f"{path} is not a torchpaml model file, or it carries code that loading refuses to "
+                                 f"run ({first})") from None
     if not (isinstance(stored, dict) and set(stored) == {"content", "sha256"}):
         raise ConfigurationError(f"{path} is not a torchpaml model file (torchpaml.save_model writes them)")
     return stored
@@ -133,8 +134,8 @@ def load_model(path: str | Path) -> FittedModel:
     stored = _read(path)
     content = stored["content"]
     if _checksum(content) != stored["sha256"]:
-        raise ConfigurationError(f"{path} was changed after it was written (its SHA-256 digest does not match); write it "
-                                 "again with torchpaml diagnose or torchpaml.save_model")
+        raise ConfigurationError(f"{path} was changed after it was written (its SHA-256 digest does not match); "
+                                 "write it again with torchpaml diagnose or torchpaml.save_model")
     written, here = content["torchpaml"], library_version()
     if content["format"] > FORMAT or _release(written) > _release(here):
         raise ConfigurationError(f"{path} was written by torchpaml {written} (file format {content['format']}); this "

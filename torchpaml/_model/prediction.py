@@ -84,8 +84,8 @@ def output_std(model: FittedModel, record: Record, x0: torch.Tensor) -> torch.Te
     names = [name for name in std if name in model.physics.physical_parameters()]
     undetermined = [name for name in names if not torch.isfinite(torch.tensor(std[name]))]
     if undetermined:
-        raise ConfigurationError(f"the fit did not determine {undetermined} (infinite standard error): the band would be "
-                                 "unbounded; fix those parameters and fit again, or predict without a band")
+        raise ConfigurationError(f"the fit did not determine {undetermined} (infinite standard error): the band would "
+                                 "be unbounded; fix those parameters and fit again, or predict without a band")
     if not names:
         return torch.zeros_like(record.y)
     order = list(std)

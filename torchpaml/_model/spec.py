@@ -60,8 +60,8 @@ def _value(value: Any, owner: str, name: str) -> Any:
         return {"list" if isinstance(value, list) else "tuple": [_value(v, owner, name) for v in value]}
     if isinstance(value, dict) and all(isinstance(k, str) for k in value):
         return {"dict": {k: _value(v, owner, name) for k, v in value.items()}}
-    raise ConfigurationError(f"cannot save {owner}: its argument {name!r} is a {type(value).__name__}; a model file keeps "
-                             "numbers, strings, lists, dicts, tensors and torchpaml modules as arguments")
+    raise ConfigurationError(f"cannot save {owner}: its argument {name!r} is a {type(value).__name__}; a model file "
+                             "keeps numbers, strings, lists, dicts, tensors and torchpaml modules as arguments")
 
 
 def _built_value(value: Any) -> Any:

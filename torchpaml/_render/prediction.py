@@ -18,8 +18,8 @@ __all__ = ["write_prediction"]
 def write_prediction(model: FittedModel, record: Record, prediction: Prediction, out: str | Path) -> Path:
     """Write ``prediction`` of ``model`` on ``record`` to the CSV ``out``: a first line ``# {json}`` (the model's
     equation, the initial state and its policy, the band's level), then the columns ``t``, the inputs, the outputs
-    (the model's channel names, else ``y`` or ``y1, y2, …``), the states (``state_NAME``, by the physics' state names) and, with a band,
-    ``OUTPUT_lower`` and ``OUTPUT_upper``. Returns the path."""
+    (the model's channel names, else ``y`` or ``y1, y2, …``), the states (``state_NAME``, by the physics' state
+    names) and, with a band, ``OUTPUT_lower`` and ``OUTPUT_upper``. Returns the path."""
     outputs = list(model.outputs) or record.output_names
     columns = {"t": record.t, **{name: record.u[:, i] for i, name in enumerate(record.input_names)},
                **{name: prediction.y[:, i] for i, name in enumerate(outputs)},
