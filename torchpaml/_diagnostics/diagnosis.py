@@ -149,7 +149,7 @@ class Diagnosis:
         record = self.validation[0]
         return FittedModel(score.model, score.solver, residual, tuple(record.input_names),
                            tuple(record.output_names), record.hold, self.ladder.rankings[-1].initial_state,
-                           None if score.estimate is None else score.estimate.uncertainty)
+                           None if score.estimate is None else score.estimate.uncertainty, _uniform_step(record))
 
     @property
     def baseline(self) -> ModelScore:
@@ -242,6 +242,14 @@ def _noise_like(record: Record, y_model: torch.Tensor) -> tuple[bool, float]:
         noise &= int((abs(whiteness.cross_correlation) > bound).sum()) <= WHITE_SHARE * len(whiteness.cross_lags)
         linear_share = max(linear_share, whiteness.linear_share)
     return noise, linear_share
+
+
+def _uniform_step(record: Record) -> float | None:
+    """The record's sampling interval where it is uniform, else ``None``."""
+    try:
+        return uniform_step(record.elapsed)
+    except DataError:
+        return None
 
 
 def hybrid_residual(step: ModelScore, train: Record | Sequence[Record], alpha: float, deadline: float | None = None

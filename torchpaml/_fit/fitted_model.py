@@ -32,6 +32,8 @@ class FittedModel:
         hold: how the input moves between samples, as in the records it was fitted on (``"foh"``, ``"zoh"``).
         initial_state: the policy that started the records it was scored on (:func:`~torchpaml.predict` follows it).
         uncertainty: the fit's standard errors and correlations of the parameters, or ``None``.
+        step: the records' sampling interval (s), where it is uniform, else ``None`` (an exporter's step for a model
+            simulated exactly).
     """
 
     physics: AbstractPhysics
@@ -42,6 +44,7 @@ class FittedModel:
     hold: str = "foh"
     initial_state: InitialState = field(default_factory=Rest)
     uncertainty: Uncertainty | None = field(default=None, repr=False)
+    step: float | None = None
 
     def simulate(self, record: Record, x0: torch.Tensor | None = None) -> torch.Tensor:
         r"""The output on ``record`` from ``x0`` (n_state,) or rest, (time, n_output), the input held as the record
