@@ -2,7 +2,7 @@
 PYTHON ?= python3
 DEMO ?= results/demo
 
-.PHONY: install install-docs install-fleet demo fleet paper test test-all test-experiments docs tables bench contrast silverbox tanks boucwen emps discovery leaderboard
+.PHONY: install install-docs install-fleet install-export demo fleet paper test test-all test-experiments docs tables bench contrast silverbox tanks boucwen emps discovery leaderboard
 
 install:
 	# torch==2.13.0 first: a CPU build; a bare `torch` requirement would pull a multi-GB CUDA build.
@@ -13,6 +13,9 @@ install-docs: install
 
 install-fleet: install
 	$(PYTHON) -m pip install -q -e ".[fleet]"
+
+install-export: install
+	$(PYTHON) -m pip install -q -e ".[export]"
 
 # The end-to-end diagnosis: measurements of an oscillator with an effect that `diagnose` is not told about.
 demo: install
@@ -34,7 +37,7 @@ paper: install
 test: install
 	$(PYTHON) -m pytest -q -n 2 -m "not slow and not experiment"; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
 
-test-all: install-fleet
+test-all: install-fleet install-export
 	$(PYTHON) -m pytest -q -n 2 -m "not experiment"; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
 
 # The whole experiments on the measured data (Silverbox's and the tanks' discovery, the Bouc-Wen ladder): about four

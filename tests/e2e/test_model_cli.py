@@ -5,6 +5,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -84,3 +85,43 @@ def test_a_changed_model_file_is_refused_by_the_command(diagnosed):
     torch.save(stored, diagnosed / "changed.pt")
     done = run("simulate", "--model", "changed.pt", "--data", "val.csv", "--out", "p.csv", cwd=diagnosed)
     assert done.returncode == 2 and "was changed after it was written" in done.stderr
+
+
+def test_export_writes_an_fmu_an_onnx_step_and_code_that_reproduce_the_validation_record(diagnosed):
+    """The diagnosis' model exported from the command line: the FMU (run by FMPy in a process without torchpaml),
+    the ONNX step (onnxruntime) and the pasted Python each reproduce the model on the validation record to 1e-6."""
+    pytest.importorskip("fmpy", reason="the FMU is checked by FMPy ([export])")
+    onnxruntime = pytest.importorskip("onnxruntime", reason="the ONNX step is checked by onnxruntime ([export])")
+    done = run("export", "--model", "out/model.pt", "--fmu", "model.fmu", "--onnx", "model.onnx", "--code", "model.py",
+               cwd=diagnosed)
+    assert done.returncode == 0, done.stderr
+    model, record = load_model(diagnosed / "out" / "model.pt"), Record.from_csv(diagnosed / "val.csv")
+    reference = model.simulate(record).numpy()
+    relative = lambda y: float(np.linalg.norm(y - reference) / np.linalg.norm(reference))  # noqa: E731
+    np.savez(diagnosed / "val.npz", t=record.t.numpy(), u=record.u.numpy())
+    script = ("import sys, numpy as np; from fmu_driver import run_fmu; r = np.load('val.npz'); "
+              "np.save('fmu_y.npy', run_fmu('model.fmu', r['t'], r['u'])); "
+              "assert not any(m.startswith('torchpaml') for m in sys.modules)")
+    tests = str(Path(__file__).resolve().parents[1])
+    subprocess.run([sys.executable, "-c", script], cwd=diagnosed, check=True, env={**ONE_THREAD, "PYTHONPATH": tests})
+    assert relative(np.load(diagnosed / "fmu_y.npy")) < 1e-6
+    session, t, u = onnxruntime.InferenceSession(str(diagnosed / "model.onnx")), record.t.numpy(), record.u.numpy()
+    x, y = np.zeros(model.physics.state_dim), []
+    for k in range(len(t)):
+        after = min(k + 1, len(t) - 1)
+        x, out = session.run(None, {"t": t[k:k + 1], "x": x, "u0": u[k], "u1": u[after], "h": t[after:after + 1] - t[k]})
+        y.append(out)
+    assert relative(np.array(y)) < 1e-6
+    namespace: dict = {}
+    exec((diagnosed / "model.py").read_text(), namespace)
+    assert relative(np.array(namespace["simulate"](t.tolist(), u.tolist()))) < 1e-6
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--model", "out/model.pt"], "nothing to export"),
+    (["--model", "out/model.pt", "--code", "model.rs"], "names no language"),
+    (["--model", "out/absent.pt", "--code", "m.py"], "no model file at out/absent.pt"),
+])
+def test_export_refuses_in_one_line(diagnosed, args, message):
+    done = run("export", *args, cwd=diagnosed)
+    assert done.returncode == 2 and message in done.stderr and len(done.stderr.strip().splitlines()) == 1

@@ -177,8 +177,8 @@ def interpret(program, values: dict[str, np.ndarray], owner: str) -> tuple:
             action = OPS.get(node.target)
             if action is None:
                 raise ConfigurationError(f"cannot export {owner}: the exporter does not know the operation "
-                                         f"{node.target} (from {node.meta.get('stack_trace', '').strip().splitlines()[-1:] or 'its code'}); "
-                                         "write the physics with the operations listed in torchpaml._export.aten.OPS")
+                                         f"{node.target}; write the physics with the operations listed in "
+                                         "torchpaml._export.aten.OPS")
             args = [_argument(a, env) for a in node.args]
             kwargs = {k: _argument(v, env) for k, v in node.kwargs.items()
                       if k not in ("dtype", "layout", "device", "pin_memory", "memory_format", "non_blocking")}

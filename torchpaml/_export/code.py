@@ -63,8 +63,8 @@ def _substeps(model: FittedModel) -> int:
 def exported_step(model: FittedModel) -> ExportedStep:
     """The closed form of ``model``'s physics and its step (module docstring); refuses a residual in one line."""
     if model.residual is not None:
-        raise ConfigurationError(f"cannot export the residual {type(model.residual).__name__} as code or an FMU: export "
-                                 "the grey box (model.pt), or the whole hybrid's one-step map as ONNX")
+        raise ConfigurationError(f"cannot export the residual {type(model.residual).__name__} (a hybrid, hybrid.pt): "
+                                 "the exporters print the grey box; export model.pt")
     form = closed_form(model.physics, model.inputs, model.outputs)
     return ExportedStep(form, _substeps(model), model.hold, model.physics.equation())
 

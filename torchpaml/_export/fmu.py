@@ -1,7 +1,7 @@
 r"""The grey box as an FMU: FMI 2.0 co-simulation, the C text of :func:`~torchpaml._export.code.c_code` compiled.
 
 The FMU's variables carry the records' channel names: one ``input`` per input channel, one ``output`` per output
-channel, the states as ``local`` variables and their initial values as parameters ``x0_NAME`` (rest by default: set
+channel, the states as ``local`` variables ``state_NAME`` and their initial values as parameters ``x0_NAME`` (rest by default: set
 them to start elsewhere). ``fmi2DoStep(t, h)`` takes RK4 at the model's substeps over $h$, the input moving along
 the derivative the importer sets with ``fmi2SetRealInputDerivatives`` (``canInterpolateInputs``: FMPy's
 ``set_input_derivatives=True`` gives the first-order hold the model was fitted with; without it, the input is held).
@@ -148,7 +148,7 @@ def _description(step: ExportedStep, identifier: str, guid: str) -> str:
     for name in form.outputs:
         variable(name, 'causality="output" variability="continuous" initial="calculated"', "")
     for symbol in form.states:
-        variable(symbol.name, 'causality="local" variability="continuous" initial="calculated"', "")
+        variable(f"state_{symbol.name}", 'causality="local" variability="continuous" initial="calculated"', "")
     for symbol in form.states:
         variable(f"x0_{symbol.name}", 'causality="parameter" variability="fixed" initial="exact"', 'start="0"')
     m, p = len(form.inputs), len(form.outputs)

@@ -148,4 +148,4 @@ def load_model(path: str | Path) -> FittedModel:
                                  "torchpaml.save_model")
     return FittedModel(physics, built_solver(content["solver"]), residual, tuple(content["inputs"]),
                        tuple(content["outputs"]), content["hold"], policy_named(content["initial_state"]),
-                       _built_uncertainty(content["uncertainty"]), content["step"])
+                       _built_uncertainty(content["uncertainty"]), content.get("step"))

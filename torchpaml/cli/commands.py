@@ -1,4 +1,5 @@
-"""``torchpaml simulate`` and ``torchpaml paper`` (argparse), and the top-level help that lists every command."""
+"""``torchpaml simulate``, ``torchpaml export`` and ``torchpaml paper`` (argparse), and the top-level help that lists
+every command."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ commands:
   diagnose   find the effect a physics model is missing (torchpaml diagnose --help)
   fleet      diagnose every unit of a fleet on Ray, and see which ones changed (torchpaml fleet --help)
   simulate   write noisy measurements of library physics plus effects, or (--model) a saved model's prediction
+  export     write a saved model as an FMU, an ONNX step and code (torchpaml export --help)
   paper      reproduce the paper's numerical results
   fit, validate, test
              train, validate or test a Lightning system from a config (torchpaml fit --help)
@@ -100,6 +102,22 @@ def _simulate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(run=_simulate)
 
 
+def _export(args: argparse.Namespace) -> None:
+    from torchpaml._export import export_model
+    from torchpaml._model import load_model
+
+    written = export_model(load_model(args.model), fmu=args.fmu, onnx=args.onnx, code=args.code)
+    print("wrote " + ", ".join(str(p) for p in written))
+
+
+def _export_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--model", required=True, help="a saved model (model.pt of torchpaml diagnose)")
+    parser.add_argument("--fmu", help="FMU to write (FMI 2.0 co-simulation; needs a C compiler and FMPy's headers)")
+    parser.add_argument("--onnx", help="ONNX file to write: the model's one-step map")
+    parser.add_argument("--code", help="code to write, the language by the suffix: .py, .c or .h, .tex")
+    parser.set_defaults(run=_export)
+
+
 def _paper_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--alpha", type=float, action="append", help="input amplitude (repeat for several)")
     parser.add_argument("--seeds", type=int, default=10, help="number of pseudorandom seeds (default 10)")
@@ -109,16 +127,17 @@ def _paper_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def parser(prog: str = "torchpaml") -> argparse.ArgumentParser:
-    """The argparse parser of ``simulate`` and ``paper`` (the other commands are listed for ``--help``)."""
+    """The argparse parser of ``simulate``, ``export`` and ``paper`` (the other commands are listed for ``--help``)."""
     top = argparse.ArgumentParser(prog=prog, description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = top.add_subparsers(dest="command", required=True)
     _paper_arguments(commands.add_parser("paper", help="reproduce the paper's numerical results"))
     _simulate_arguments(commands.add_parser("simulate", help="generate noisy measurements from physics + effects"))
+    _export_arguments(commands.add_parser("export", help="write a saved model as an FMU, an ONNX step and code"))
     return top
 
 
 def run_command(argv: list[str], prog: str = "torchpaml") -> None:
-    """Parse ``argv`` (``simulate ...`` or ``paper ...``) and run the command."""
+    """Parse ``argv`` (``simulate ...``, ``export ...`` or ``paper ...``) and run the command."""
     top = parser(prog)
     args = top.parse_args(argv)
     args.prog = prog
