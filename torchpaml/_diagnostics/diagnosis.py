@@ -149,7 +149,8 @@ class Diagnosis:
         record = self.validation[0]
         return FittedModel(score.model, score.solver, residual, tuple(record.input_names),
                            tuple(record.output_names), record.hold, self.ladder.rankings[-1].initial_state,
-                           None if score.estimate is None else score.estimate.uncertainty, _uniform_step(record))
+                           None if score.estimate is None else score.estimate.uncertainty, _uniform_step(record),
+                           _residual_rms(self.validation, score.validation_outputs))
 
     @property
     def baseline(self) -> ModelScore:
@@ -242,6 +243,14 @@ def _noise_like(record: Record, y_model: torch.Tensor) -> tuple[bool, float]:
         noise &= int((abs(whiteness.cross_correlation) > bound).sum()) <= WHITE_SHARE * len(whiteness.cross_lags)
         linear_share = max(linear_share, whiteness.linear_share)
     return noise, linear_share
+
+
+def _residual_rms(records: list[Record], outputs: list[torch.Tensor]) -> tuple[float, ...]:
+    """Each output channel's RMS of $y - \\hat y$ over ``records`` and the model's ``outputs`` on them."""
+    if len(outputs) != len(records):
+        return ()
+    errors = torch.cat([r.y - y.reshape(r.y.shape) for r, y in zip(records, outputs)])
+    return tuple(float(v) for v in errors.square().mean(0).sqrt())
 
 
 def _uniform_step(record: Record) -> float | None:

@@ -34,6 +34,8 @@ class FittedModel:
         uncertainty: the fit's standard errors and correlations of the parameters, or ``None``.
         step: the records' sampling interval (s), where it is uniform, else ``None`` (an exporter's step for a model
             simulated exactly).
+        noise: each output's residual RMS on the records it was scored on (the measurement noise where the model is
+            right: a tracker's noise level), or empty.
     """
 
     physics: AbstractPhysics
@@ -45,6 +47,7 @@ class FittedModel:
     initial_state: InitialState = field(default_factory=Rest)
     uncertainty: Uncertainty | None = field(default=None, repr=False)
     step: float | None = None
+    noise: tuple[float, ...] = ()
 
     def simulate(self, record: Record, x0: torch.Tensor | None = None) -> torch.Tensor:
         r"""The output on ``record`` from ``x0`` (n_state,) or rest, (time, n_output), the input held as the record

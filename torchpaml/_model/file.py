@@ -3,12 +3,12 @@ code.
 
 :func:`save_model` writes, with ``torch.save``, a dict of plain data: the physics and the residual as
 :func:`~torchpaml._model.spec.module_spec` describes them (class path, arguments, attributes, constraints, raw
-parameters), the solver's fields, the channels' names, the records' hold and sampling interval, the initial-state
-policy, the parameters' uncertainty, the library's version and a SHA-256 digest of all of it. :func:`load_model` reads it with
-``torch.load(weights_only=True)`` (tensors and plain containers only: a file that carries code is refused by torch
-itself), checks the digest and the version, imports each class by its path and builds the model again; its
-parameters are the saved ones bit for bit. Each refusal is one line: a file from a newer torchpaml, a class that
-cannot be imported, a file changed after it was written.
+parameters), the solver's fields, the channels' names, the records' hold, sampling interval and residual RMS, the
+initial-state policy, the parameters' uncertainty, the library's version and a SHA-256 digest of all of it.
+:func:`load_model` reads it with ``torch.load(weights_only=True)`` (tensors and plain containers only: a file that
+carries code is refused by torch itself), checks the digest and the version, imports each class by its path and
+builds the model again; its parameters are the saved ones bit for bit. Each refusal is one line: a file from a newer
+torchpaml, a class that cannot be imported, a file changed after it was written.
 """
 
 from __future__ import annotations
@@ -102,7 +102,7 @@ def save_model(model: FittedModel, path: str | Path) -> Path:
         "residual": None if model.residual is None else module_spec(model.residual),
         "inputs": list(model.inputs), "outputs": list(model.outputs), "hold": model.hold,
         "initial_state": model.initial_state.name, "uncertainty": _uncertainty(model.uncertainty),
-        "step": model.step,
+        "step": model.step, "noise": list(model.noise),
     }
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -148,4 +148,5 @@ def load_model(path: str | Path) -> FittedModel:
                                  "torchpaml.save_model")
     return FittedModel(physics, built_solver(content["solver"]), residual, tuple(content["inputs"]),
                        tuple(content["outputs"]), content["hold"], policy_named(content["initial_state"]),
-                       _built_uncertainty(content["uncertainty"]), content.get("step"))
+                       _built_uncertainty(content["uncertainty"]), content.get("step"),
+                       tuple(content.get("noise", ())))

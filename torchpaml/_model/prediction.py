@@ -28,7 +28,7 @@ from torchpaml._fit.physics_fit import estimate_initial_state
 from torchpaml._fit.uncertainty import constraint_slopes
 from torchpaml._simulate.solvers import Auto
 
-__all__ = ["Prediction", "predict"]
+__all__ = ["Prediction", "check_channels", "initial_state_of", "output_std", "predict"]
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,8 @@ class Prediction:
     level: float | None = None
 
 
-def _check_channels(model: FittedModel, record: Record) -> None:
+def check_channels(model: FittedModel, record: Record) -> None:
+    """Refuse ``record`` where its inputs are not the model's (their number, or their names where both name them)."""
     inputs = model.physics.input_dim
     if record.u.shape[1] != inputs:
         raise DataError(f"record {record.name!r} has {record.u.shape[1]} input column(s); the model takes {inputs} "
@@ -100,7 +101,7 @@ def output_std(model: FittedModel, record: Record, x0: torch.Tensor) -> torch.Te
 def predict(model: FittedModel, record: Record, level: float | None = None) -> Prediction:
     """``model`` on ``record``: outputs and states from the policy's initial state, and with ``level`` (e.g. 0.95) the
     output band from the fit's covariance (module docstring)."""
-    _check_channels(model, record)
+    check_channels(model, record)
     if level is not None and not 0.0 < level < 1.0:
         raise ConfigurationError(f"the band's level is a coverage between 0 and 1 (0.95), got {level}")
     x0 = initial_state_of(model, record)

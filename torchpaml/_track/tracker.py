@@ -1,0 +1,327 @@
+r"""Tracking a running device: the model's Kalman filter, a change detector on its innovation, and the parameter
+that moved.
+
+**The filter** (:mod:`~torchpaml._track.filter_code`) runs on the fitted model, fed one sample or a block at a time.
+Its measurement noise $R$ is the diagonal of the model's residual variance per output (``FittedModel.noise``, from
+the diagnosis), its process noise $Q$ zero unless given (``process=``: the model is trusted, so that a device that
+departs from it shows in the innovation rather than in the state), and it starts at the model's rest state (or
+``x0``) with covariance ``initial_variance`` times the identity.
+
+**The detector** is a windowed chi-squared test: while the device matches the model, the normalised innovations
+squared $\nu_k$ are independent $\chi^2_p$, so their sum over the last $W$ samples (``window`` seconds) is
+$\chi^2_{pW}$. An alarm is raised where that sum crosses above its $1 - \alpha$ quantile (``alpha``, default
+$10^{-9}$: about one false alarm in $10^9$ windows), once per crossing: the statistic must fall below the threshold
+before the next alarm.
+
+**The parameter that moved** is named once ``attribution`` seconds of the stream after the alarm have arrived (the
+alarm keeps the time it was raised): the change is dated where the cumulative sum of $\nu_k - 2p$ over the $2W$
+samples before the alarm is lowest, and on the samples from there to ``attribution`` seconds after the alarm, each
+physical parameter alone (with the state at the change) is refitted from the model's values
+(:func:`~torchpaml.fit_physics`, Gauss-Newton on the parameters' sensitivities). The parameter whose refit explains the
+samples best is named. At the end of a record (:func:`track`, :meth:`Tracker.flush`) an alarm is named on what
+arrived.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from numpy.lib.stride_tricks import sliding_window_view
+from scipy.stats import chi2
+
+from torchpaml._data import Record
+from torchpaml._fit.initial_state import Estimate
+from torchpaml._fit.physics_fit import fit_physics
+from torchpaml._fit.uncertainty import IdentifiabilityWarning
+from torchpaml._errors import ConfigurationError, TorchpamlError
+from torchpaml._export.code import exported_step
+from torchpaml._fit.fitted_model import FittedModel
+from torchpaml._model.prediction import check_channels
+from torchpaml._track.filter_code import compiled_filter
+
+__all__ = ["Alarm", "Tracker", "Tracking", "track"]
+
+
+@dataclass(frozen=True)
+class Alarm:
+    """A change: the time (s) the statistic crossed its threshold, the statistic there, and the parameter that moved
+    (``None`` where the samples around the alarm cannot tell: a constant output, a fit that fails)."""
+
+    t: float
+    statistic: float
+    parameter: str | None
+
+
+@dataclass
+class Tracking:
+    """What a tracker saw on a record (module docstring).
+
+    Attributes:
+        t: the sample times, (time,).
+        innovation: $y - \\hat y^-$ at each sample, (time, n_y).
+        statistic: the sum of the normalised innovations squared over the last window, (time,).
+        threshold: the statistic's alarm level.
+        states: the filtered states, (time, n_state).
+        alarms: the changes found.
+        outputs: the output channels' names.
+        seconds: the wall time of the filtering (and of naming the parameters at alarms).
+    """
+
+    t: np.ndarray
+    innovation: np.ndarray
+    statistic: np.ndarray
+    threshold: float
+    states: np.ndarray
+    alarms: list[Alarm] = field(default_factory=list)
+    outputs: tuple[str, ...] = ()
+    seconds: float = 0.0
+
+    @property
+    def innovation_rms(self) -> dict[str, float]:
+        """The innovation's RMS per output channel."""
+        return {name: float(np.sqrt(np.mean(self.innovation[:, i] ** 2))) for i, name in enumerate(self.outputs)}
+
+
+class Tracker:
+    """The filter and the detector of one model, fed a stream (module docstring).
+
+    Args:
+        model: the fitted model (``torchpaml.load_model(path)``); a residual on top is not tracked.
+        noise: each output's noise standard deviation; default the model's ``noise`` (the diagnosis' residual).
+        process: each state's process noise standard deviation per sample (default zero).
+        window: the detector's window, seconds.
+        alpha: the detector's false-alarm probability per window.
+        x0: the initial state (default rest); ``initial_variance``: its variance, per state.
+        step: the sampling interval, s (default the model's), which sets the window in samples.
+        attribution: the seconds after an alarm on which the parameter that moved is named.
+    """
+
+    def __init__(self, model: FittedModel, *, noise: tuple[float, ...] | None = None,
+                 process: tuple[float, ...] | None = None, window: float = 0.5, alpha: float = 1e-9,
+                 x0: torch.Tensor | None = None, initial_variance: float = 0.0, step: float | None = None,
+                 attribution: float = 1.0):
+        physics = model.physics
+        n, m, p = physics.state_dim, physics.input_dim, physics.output_dim
+        noise = tuple(model.noise) if noise is None else tuple(noise)
+        if len(noise) != p or not all(np.isfinite(noise)) or min(noise) <= 0:
+            raise ConfigurationError(f"tracking needs each output's noise level, {p} positive number(s), got {noise}: "
+                                     "save the model from a diagnosis (which records its residual), or pass noise=")
+        step = model.step if step is None else step
+        if step is None or not step > 0 or not window > 0 or not 0 < alpha < 1:
+            raise ConfigurationError(f"tracking needs a sampling interval (step={step}), a window > 0 s "
+                                     f"(window={window}) and 0 < alpha < 1 (alpha={alpha})")
+        self.model, self.outputs = model, tuple(model.outputs) or _default_names(p)
+        self.filter = compiled_filter(exported_step(dataclasses.replace(model, residual=None)))
+        self.samples = max(1, round(window / step))
+        self.threshold = float(chi2.isf(alpha, p * self.samples))
+        self.rearm = float(p * self.samples)
+        start = physics.initial_state(1)[0] if x0 is None else torch.as_tensor(x0, dtype=torch.float64).reshape(-1)
+        Q = np.zeros((n, n)) if process is None else np.diag(np.square(np.asarray(process, dtype=np.float64)))
+        # the filter's arrays (filter_code.CompiledFilter.run_into): the last two samples' t, u, y, then x, P, Q, R,
+        # and the two samples' innovation, nis and states; x and P carry the filter from one call to the next
+        self._pair = (np.zeros(2), np.zeros((2, m)), np.zeros((2, p)), start.numpy().copy(), np.eye(n) * initial_variance,
+                      Q, np.diag(np.square(noise)), np.zeros((2, p)), np.zeros(2), np.zeros((2, n)))
+        self._addresses = [a.ctypes.data for a in self._pair]
+        self._started = False
+        self._armed = True
+        self.after = max(1, round(attribution / step))
+        self._history = _Ring(2 * self.samples + self.after + 1, (m, p, n))  # t, u, y, states, nis
+        self._pending: list[tuple[int, float, float]] = []  # alarms to name: (sample in the stream, t, statistic)
+
+    @property
+    def x(self) -> np.ndarray:
+        """The filtered state, (n_state,)."""
+        return self._pair[3]
+
+    @property
+    def P(self) -> np.ndarray:
+        """Its covariance, (n_state, n_state)."""
+        return self._pair[4]
+
+    def _filter(self, t: np.ndarray, u: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Innovations, normalised innovations squared and filtered states of the new samples (after the stream's
+        first, each is predicted from the sample before it, kept in the filter's arrays)."""
+        pair, skip = self._pair, int(self._started)
+        if skip:
+            t, u, y = (np.concatenate([pair[i][1:], new]) for i, new in enumerate((t, u, y)))
+        outputs = (np.zeros((len(t), y.shape[1])), np.zeros(len(t)), np.zeros((len(t), len(pair[3]))))
+        self._check(self.filter.run_into(skip, (t, u, y, *pair[3:7], *outputs)), t)
+        for i, array in enumerate((t, u, y)):
+            pair[i][1] = array[-1]
+        self._started = True
+        return tuple(a[skip:] for a in outputs)
+
+    def _check(self, failed: int, t: np.ndarray) -> None:
+        if failed:
+            raise ConfigurationError(f"the filter's innovation covariance stopped being positive definite at t = "
+                                     f"{t[failed - 1]:.6g} s; raise the measurement noise (noise=)")
+
+    def _statistic(self, nis: np.ndarray) -> np.ndarray:
+        """The sum of the normalised innovations squared over the last window at each new sample (zeros before the
+        stream's start), each window summed alone and in time order, so that a stream fed in blocks of any size,
+        one sample included, gives the same sums bit for bit."""
+        earlier = self._history.last(self.samples - 1)[4]
+        values = np.concatenate([np.zeros(self.samples - 1 - len(earlier)), earlier, nis])
+        return sliding_window_view(values, self.samples).sum(axis=1)
+
+    def _alarms_at(self, statistic: np.ndarray) -> list[int]:
+        """The samples where the statistic crosses above the threshold while armed (:meth:`_crosses`)."""
+        return [int(k) for k in np.nonzero((statistic > self.threshold) | (statistic < self.rearm))[0]
+                if self._crosses(statistic[k])]
+
+    def _crosses(self, statistic: float) -> bool:
+        """Whether ``statistic`` raises an alarm: above the threshold while armed. It re-arms where it falls back
+        below its mean under no change, p W (the device matches the model again)."""
+        if statistic > self.threshold and self._armed:
+            self._armed = False
+            return True
+        if statistic < self.rearm:
+            self._armed = True
+        return False
+
+    def update(self, t: float, u, y) -> Alarm | None:
+        """One sample of a stream: its time (s), input (n_u,) and output (n_y,); the alarm named on it, if any (raised
+        ``attribution`` seconds earlier). The same filter, sums and decisions as :meth:`feed`, with the arrays kept
+        between calls."""
+        if not self._started:
+            alarms = self._advance(np.array([float(t)]), np.asarray(u, dtype=np.float64).reshape(1, -1),
+                                   np.asarray(y, dtype=np.float64).reshape(1, -1))[3]
+            return alarms[0] if alarms else None
+        pair = self._pair
+        for i, value in enumerate((t, u, y)):
+            pair[i][0] = pair[i][1]
+            pair[i][1] = value
+        self._check(self.filter.run_at(2, 1, self._addresses), pair[0])
+        self._history.append((t, pair[1][1], pair[2][1], pair[9][1], pair[8][1]))
+        statistic = self._history.window_sum(self.samples)
+        if self._crosses(statistic):
+            self._pending.append((self._history.count - 1, float(t), statistic))
+        named = self._named()
+        return named[0] if named else None
+
+    def feed(self, record: Record) -> Tracking:
+        """Filter the samples of ``record`` (the next part of a stream) and return what was seen on them."""
+        check_channels(self.model, record)
+        started = time.perf_counter()
+        t, u, y = record.t.numpy(), record.u.numpy(), record.y.numpy()
+        innovation, statistic, states, alarms = self._advance(t, u, y)
+        return Tracking(t, innovation, statistic, self.threshold, states, alarms, self.outputs,
+                        time.perf_counter() - started)
+
+    def _advance(self, t: np.ndarray, u: np.ndarray, y: np.ndarray) -> tuple:
+        innovation, nis, states = self._filter(t, u, y)
+        statistic = self._statistic(nis)
+        first = self._history.count
+        alarms = []
+        for k in self._alarms_at(statistic):
+            self._pending.append((first + k, float(t[k]), float(statistic[k])))
+        position = 0
+        while position < len(t):  # up to each alarm's last sample, so that it is named on the samples it needs
+            due = [index + self.after - first + 1 for index, _, _ in self._pending if index + self.after >= first]
+            end = min([len(t)] + [d for d in due if d > position])
+            self._history.extend(tuple(a[position:end] for a in (t, u, y, states, nis)))
+            alarms += self._named()
+            position = end
+        return innovation, statistic, states, alarms
+
+    def flush(self) -> list[Alarm]:
+        """Name the alarms still waiting for their ``attribution`` seconds, on the samples that arrived (the end of a
+        record)."""
+        return self._named(final=True)
+
+    def _named(self, final: bool = False) -> list[Alarm]:
+        """The pending alarms whose ``attribution`` samples have arrived (all with ``final``), named."""
+        done = [a for a in self._pending if final or self._history.count - 1 >= a[0] + self.after]
+        self._pending = [a for a in self._pending if a not in done]
+        recent = self._history.last(len(self._history)) if done else []
+        start = self._history.count - len(self._history)  # the stream index of recent's first sample
+        return [Alarm(t, statistic, self._moved(recent, index - start)) for index, t, statistic in done]
+
+    def _moved(self, recent: list[np.ndarray], k: int) -> str | None:
+        """The parameter that moved at the alarm at sample ``k`` of ``recent`` (t, u, y, states, nis; module
+        docstring)."""
+        t, u, y, states, nis = recent
+        first = max(0, k - 2 * self.samples)
+        begin = first + int(np.argmin(np.cumsum(nis[first: k + 1] - 2 * y.shape[1])))
+        window = Record(t[begin:k + self.after + 1], u[begin:k + self.after + 1], y[begin:k + self.after + 1], "alarm",
+                        {"inputs": list(self.model.inputs)} if self.model.inputs else {}, self.model.hold)
+        start = torch.from_numpy(states[begin].copy())
+        names = list(self.model.physics.physical_parameters())
+        try:
+            misfit = [self._refit(name, window, start) for name in names]
+        except TorchpamlError:
+            return None
+        return names[int(np.argmin(misfit))]
+
+    def _refit(self, name: str, window: Record, start: torch.Tensor) -> float:
+        """The mismatch on ``window`` of the model with ``name`` alone refitted, from the state ``start``."""
+        physics = copy.deepcopy(self.model.physics)
+        physics.set_learnable(*physics.learnable_names(), learn=False).set_learnable(name)
+        with warnings.catch_warnings():  # a parameter the window cannot determine keeps its value: its misfit
+            warnings.simplefilter("ignore", IdentifiabilityWarning)
+            fit = fit_physics(physics, window, initial_state=Estimate(), start_states=[start],
+                              solver=self.model.solver, max_nfev=20, ftol=1e-6)
+        return fit.mismatch
+
+
+class _Ring:
+    """The last ``capacity`` samples of t, u, y, the filtered states and nis, kept in place (a stream fed one
+    sample at a time writes one row)."""
+
+    def __init__(self, capacity: int, widths: tuple[int, int, int]):
+        m, p, n = widths
+        self.capacity, self.count = capacity, 0
+        self.arrays = [np.zeros(capacity), np.zeros((capacity, m)), np.zeros((capacity, p)), np.zeros((capacity, n)),
+                       np.zeros(capacity)]
+
+    def __len__(self) -> int:
+        return min(self.count, self.capacity)
+
+    def append(self, row: tuple) -> None:
+        i = self.count % self.capacity
+        for array, value in zip(self.arrays, row):
+            array[i] = value
+        self.count += 1
+
+    def extend(self, blocks: tuple[np.ndarray, ...]) -> None:
+        n = len(blocks[0])
+        rows = min(n, self.capacity)
+        index = (self.count + n - rows + np.arange(rows)) % self.capacity
+        for array, block in zip(self.arrays, blocks):
+            array[index] = block[n - rows:]
+        self.count += n
+
+    def last(self, n: int) -> list[np.ndarray]:
+        """The last ``n`` rows of each array, oldest first (fewer where fewer were kept)."""
+        n = min(n, len(self))
+        index = (self.count - n + np.arange(n)) % self.capacity
+        return [array[index] for array in self.arrays]
+
+    def window_sum(self, n: int) -> float:
+        """The sum of the last ``n`` nis in time order (zeros before the stream's start), as :meth:`Tracker._statistic`
+        sums a window."""
+        nis, kept = self.arrays[4], min(n, len(self))
+        end = self.count % self.capacity
+        parts = [nis[end - kept:end]] if kept <= end else [nis[self.capacity - (kept - end):], nis[:end]]
+        return float(np.concatenate([np.zeros(n - kept), *parts]).sum())
+
+
+def _default_names(p: int) -> tuple[str, ...]:
+    return ("y",) if p == 1 else tuple(f"y{i}" for i in range(1, p + 1))
+
+
+def track(model: FittedModel, record: Record, **options) -> Tracking:
+    """Track ``model`` along ``record`` in one call (module docstring): ``Tracker(model, **options).feed(record)``, the
+    alarms still waiting at the record's end named on what it holds."""
+    tracker = Tracker(model, **options)
+    tracking = tracker.feed(record)
+    started = time.perf_counter()
+    tracking.alarms += tracker.flush()
+    tracking.seconds += time.perf_counter() - started
+    return tracking
