@@ -78,7 +78,7 @@ from torchpaml._physics.effects import *  # noqa: F403  the library's effects (E
 from torchpaml._physics.registry import PHYSICS, build_model
 from torchpaml._render.report import write_report
 from torchpaml._export import export_model
-from torchpaml._track import Alarm, Tracker, Tracking, track
+from torchpaml._track import Tracker, track
 from torchpaml._model import Prediction, load_model, predict, save_model
 from torchpaml._residual import AbstractResidual, ChebyshevHammerstein, ForceAugmented, MLPForce, MLPResidual
 from torchpaml._signals import chirp, cosine, multisine, pseudorandom, sine, time_grid
@@ -103,7 +103,7 @@ __all__ = [
     "IdentifiabilityWarning", "estimate_initial_state", "fit_chebyshev_hammerstein", "fit_residual",
     "ResidualEstimate", "fit_neural_force", "reestimate_shift",
     # a fitted model at work: its file and its predictions
-    "save_model", "load_model", "predict", "Prediction", "export_model", "track", "Tracker", "Tracking", "Alarm",
+    "save_model", "load_model", "predict", "Prediction", "export_model", "track", "Tracker",
     # residuals
     "AbstractResidual", "ChebyshevHammerstein", "MLPResidual", "MLPForce", "ForceAugmented",
     # measures

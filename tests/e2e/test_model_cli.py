@@ -125,3 +125,32 @@ def test_export_writes_an_fmu_an_onnx_step_and_code_that_reproduce_the_validatio
 def test_export_refuses_in_one_line(diagnosed, args, message):
     done = run("export", *args, cwd=diagnosed)
     assert done.returncode == 2 and message in done.stderr and len(done.stderr.strip().splitlines()) == 1
+
+
+def test_track_writes_track_json_and_flags_a_changed_device(diagnosed):
+    """The diagnosis' model followed along its validation record (no alarm) and along a record of a device whose
+    cubic stiffness tripled (an alarm naming it)."""
+    done = run("simulate", "--physics", "oscillator", "--effect", "cubic_stiffness=6", "--duration", "30", "--dt",
+               "0.05", "--noise", "0.01", "--seed", "2", "--out", "changed.csv", cwd=diagnosed)
+    assert done.returncode == 0, done.stderr
+    for data, folder in (("val.csv", "track_same"), ("changed.csv", "track_changed")):
+        done = run("track", "--model", "out/model.pt", "--data", data, "--out", folder, "--window", "2",
+                   "--attribution", "10", cwd=diagnosed)  # 20 Hz: windows of 40 and 200 samples
+        assert done.returncode == 0, done.stderr
+        assert (diagnosed / folder / "track.png").stat().st_size > 0
+    same = json.loads((diagnosed / "track_same" / "track.json").read_text())
+    changed = json.loads((diagnosed / "track_changed" / "track.json").read_text())
+    assert set(same) >= {"schema_version", "alarms", "innovation_rms", "seconds"} and same["alarms"] == []
+    assert changed["alarms"] and set(changed["alarms"][0]) == {"t", "statistic", "parameter"}
+    assert changed["alarms"][0]["parameter"] == "cubic_stiffness.k3"
+    assert changed["innovation_rms"]["y"] > 1.5 * same["innovation_rms"]["y"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--model", "out/model.pt", "--data", "val.csv", "--out", "t", "--alpha", "2"], "0 < alpha < 1"),
+    (["--model", "out/model.pt", "--data", "val.csv", "--out", "t", "--noise", "0"], "needs each output's noise"),
+    (["--model", "out/absent.pt", "--data", "val.csv", "--out", "t"], "no model file at out/absent.pt"),
+])
+def test_track_refuses_in_one_line(diagnosed, args, message):
+    done = run("track", *args, cwd=diagnosed)
+    assert done.returncode == 2 and message in done.stderr and len(done.stderr.strip().splitlines()) == 1

@@ -209,7 +209,7 @@ class Tracker:
         """Filter the samples of ``record`` (the next part of a stream) and return what was seen on them."""
         check_channels(self.model, record)
         started = time.perf_counter()
-        t, u, y = record.t.numpy(), record.u.numpy(), record.y.numpy()
+        t, u, y = (np.ascontiguousarray(v.numpy()) for v in (record.t, record.u, record.y))  # C reads them in order
         innovation, statistic, states, alarms = self._advance(t, u, y)
         return Tracking(t, innovation, statistic, self.threshold, states, alarms, self.outputs,
                         time.perf_counter() - started)

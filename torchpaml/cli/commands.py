@@ -1,5 +1,5 @@
-"""``torchpaml simulate``, ``torchpaml export`` and ``torchpaml paper`` (argparse), and the top-level help that lists
-every command."""
+"""``torchpaml simulate``, ``export``, ``track`` and ``paper`` (argparse), and the top-level help that lists every
+command."""
 
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ commands:
   fleet      diagnose every unit of a fleet on Ray, and see which ones changed (torchpaml fleet --help)
   simulate   write noisy measurements of library physics plus effects, or (--model) a saved model's prediction
   export     write a saved model as an FMU, an ONNX step and code (torchpaml export --help)
+  track      follow a running device on a saved model and flag when it stops matching (torchpaml track --help)
   paper      reproduce the paper's numerical results
   fit, validate, test
              train, validate or test a Lightning system from a config (torchpaml fit --help)
@@ -118,6 +119,40 @@ def _export_arguments(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(run=_export)
 
 
+def _track(args: argparse.Namespace) -> None:
+    from torchpaml._data import Record
+    from torchpaml._model import load_model
+    from torchpaml._render.tracking import write_tracking
+    from torchpaml._track import track
+
+    model = load_model(args.model)
+    record = Record.from_csv(args.data, channels=(model.inputs, model.outputs), hold=args.hold)
+    options = {"window": args.window, "alpha": args.alpha, "attribution": args.attribution}
+    if args.noise:
+        options["noise"] = tuple(args.noise)
+    tracking = track(model, record, **options)
+    path = write_tracking(tracking, args.out)
+    alarms = "; ".join(f"t = {a.t:.4g} s ({a.parameter or 'parameter undetermined'})" for a in tracking.alarms)
+    print(f"wrote {path}: {len(record.t)} samples in {tracking.seconds:.3g} s, "
+          f"{len(tracking.alarms)} alarm(s){': ' + alarms if alarms else ''}")
+
+
+def _track_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--model", required=True, help="a saved model (model.pt of torchpaml diagnose)")
+    parser.add_argument("--data", required=True, help="CSV of the stream: t, the model's inputs and outputs")
+    parser.add_argument("--out", required=True, help="folder for track.json and track.png")
+    parser.add_argument("--window", type=float, default=0.5, help="the detector's window, s (default 0.5)")
+    parser.add_argument("--alpha", type=float, default=1e-9,
+                        help="the detector's false-alarm probability per window (default 1e-9)")
+    parser.add_argument("--attribution", type=float, default=1.0,
+                        help="seconds after an alarm on which the parameter that moved is named (default 1)")
+    parser.add_argument("--noise", type=float, action="append", metavar="STD",
+                        help="an output's noise standard deviation (repeat per output; default: the model's)")
+    parser.add_argument("--hold", choices=["foh", "zoh"], help="how the input moved between samples "
+                        "(default: the file's metadata, else foh)")
+    parser.set_defaults(run=_track)
+
+
 def _paper_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--alpha", type=float, action="append", help="input amplitude (repeat for several)")
     parser.add_argument("--seeds", type=int, default=10, help="number of pseudorandom seeds (default 10)")
@@ -127,17 +162,18 @@ def _paper_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def parser(prog: str = "torchpaml") -> argparse.ArgumentParser:
-    """The argparse parser of ``simulate``, ``export`` and ``paper`` (the other commands are listed for ``--help``)."""
+    """The argparse parser of ``simulate``, ``export``, ``track`` and ``paper`` (the other commands are listed for ``--help``)."""
     top = argparse.ArgumentParser(prog=prog, description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = top.add_subparsers(dest="command", required=True)
     _paper_arguments(commands.add_parser("paper", help="reproduce the paper's numerical results"))
     _simulate_arguments(commands.add_parser("simulate", help="generate noisy measurements from physics + effects"))
     _export_arguments(commands.add_parser("export", help="write a saved model as an FMU, an ONNX step and code"))
+    _track_arguments(commands.add_parser("track", help="follow a running device on a saved model"))
     return top
 
 
 def run_command(argv: list[str], prog: str = "torchpaml") -> None:
-    """Parse ``argv`` (``simulate ...``, ``export ...`` or ``paper ...``) and run the command."""
+    """Parse ``argv`` (``simulate ...``, ``export ...``, ``track ...`` or ``paper ...``) and run the command."""
     top = parser(prog)
     args = top.parse_args(argv)
     args.prog = prog
