@@ -12,6 +12,7 @@ import pytest
 import torch
 
 from torchpaml import Record, load_model, predict
+from torchpaml.cli import main
 
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 
@@ -21,6 +22,16 @@ ONE_THREAD = {**os.environ, "OMP_NUM_THREADS": "1"}
 def run(*args, cwd):
     return subprocess.run([sys.executable, "-m", "torchpaml", *args], capture_output=True, text=True, cwd=cwd,
                           timeout=300, env=ONE_THREAD)
+
+
+def refused(*args, cwd, capsys, monkeypatch) -> tuple[int, str]:
+    """A command that must refuse, run in this process (a subprocess costs seconds of imports): its exit status and
+    stderr."""
+    monkeypatch.chdir(cwd)
+    monkeypatch.setattr("sys.argv", ["torchpaml"])
+    with pytest.raises(SystemExit) as stop:
+        main(list(args))
+    return stop.value.code, capsys.readouterr().err
 
 
 @pytest.fixture(scope="module")
@@ -73,18 +84,19 @@ def test_simulate_with_a_model_writes_outputs_states_and_band(diagnosed):
     (["--model", "val.csv", "--data", "val.csv", "--out", "p.csv"], "is not a torchpaml model file"),
     (["--out", "p.csv"], "simulate needs --physics"),
 ])
-def test_simulate_with_a_model_refuses_in_one_line(diagnosed, args, message):
-    done = run("simulate", *args, cwd=diagnosed)
-    assert done.returncode == 2 and message in done.stderr and len(done.stderr.strip().splitlines()) == 1
+def test_simulate_with_a_model_refuses_in_one_line(diagnosed, args, message, capsys, monkeypatch):
+    code, err = refused("simulate", *args, cwd=diagnosed, capsys=capsys, monkeypatch=monkeypatch)
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
     assert not (diagnosed / "p.csv").exists()
 
 
-def test_a_changed_model_file_is_refused_by_the_command(diagnosed):
+def test_a_changed_model_file_is_refused_by_the_command(diagnosed, capsys, monkeypatch):
     stored = torch.load(diagnosed / "out" / "model.pt", weights_only=True)
     stored["content"]["hold"] = "zoh"
     torch.save(stored, diagnosed / "changed.pt")
-    done = run("simulate", "--model", "changed.pt", "--data", "val.csv", "--out", "p.csv", cwd=diagnosed)
-    assert done.returncode == 2 and "was changed after it was written" in done.stderr
+    code, err = refused("simulate", "--model", "changed.pt", "--data", "val.csv", "--out", "p.csv", cwd=diagnosed,
+                        capsys=capsys, monkeypatch=monkeypatch)
+    assert code == 2 and "was changed after it was written" in err
 
 
 def test_export_writes_an_fmu_an_onnx_step_and_code_that_reproduce_the_validation_record(diagnosed):
@@ -122,21 +134,22 @@ def test_export_writes_an_fmu_an_onnx_step_and_code_that_reproduce_the_validatio
     (["--model", "out/model.pt", "--code", "model.rs"], "names no language"),
     (["--model", "out/absent.pt", "--code", "m.py"], "no model file at out/absent.pt"),
 ])
-def test_export_refuses_in_one_line(diagnosed, args, message):
-    done = run("export", *args, cwd=diagnosed)
-    assert done.returncode == 2 and message in done.stderr and len(done.stderr.strip().splitlines()) == 1
+def test_export_refuses_in_one_line(diagnosed, args, message, capsys, monkeypatch):
+    code, err = refused("export", *args, cwd=diagnosed, capsys=capsys, monkeypatch=monkeypatch)
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
 
 
-def test_track_writes_track_json_and_flags_a_changed_device(diagnosed):
+def test_track_writes_track_json_and_flags_a_changed_device(diagnosed, monkeypatch):
     """The diagnosis' model followed along its validation record (no alarm) and along a record of a device whose
-    cubic stiffness tripled (an alarm naming it)."""
-    done = run("simulate", "--physics", "oscillator", "--effect", "cubic_stiffness=6", "--duration", "30", "--dt",
-               "0.05", "--noise", "0.01", "--seed", "2", "--out", "changed.csv", cwd=diagnosed)
-    assert done.returncode == 0, done.stderr
+    cubic stiffness tripled (an alarm naming it); the commands run in this process (a subprocess costs seconds of
+    imports; the export test runs the command line in its own)."""
+    monkeypatch.chdir(diagnosed)
+    monkeypatch.setattr("sys.argv", ["torchpaml"])
+    main(["simulate", "--physics", "oscillator", "--effect", "cubic_stiffness=6", "--duration", "30", "--dt", "0.05",
+          "--noise", "0.01", "--seed", "2", "--out", "changed.csv"])
     for data, folder in (("val.csv", "track_same"), ("changed.csv", "track_changed")):
-        done = run("track", "--model", "out/model.pt", "--data", data, "--out", folder, "--window", "2",
-                   "--attribution", "10", cwd=diagnosed)  # 20 Hz: windows of 40 and 200 samples
-        assert done.returncode == 0, done.stderr
+        main(["track", "--model", "out/model.pt", "--data", data, "--out", folder, "--window", "2",
+              "--attribution", "10"])  # 20 Hz: windows of 40 and 200 samples
         assert (diagnosed / folder / "track.png").stat().st_size > 0
     same = json.loads((diagnosed / "track_same" / "track.json").read_text())
     changed = json.loads((diagnosed / "track_changed" / "track.json").read_text())
@@ -151,6 +164,6 @@ def test_track_writes_track_json_and_flags_a_changed_device(diagnosed):
     (["--model", "out/model.pt", "--data", "val.csv", "--out", "t", "--noise", "0"], "needs each output's noise"),
     (["--model", "out/absent.pt", "--data", "val.csv", "--out", "t"], "no model file at out/absent.pt"),
 ])
-def test_track_refuses_in_one_line(diagnosed, args, message):
-    done = run("track", *args, cwd=diagnosed)
-    assert done.returncode == 2 and message in done.stderr and len(done.stderr.strip().splitlines()) == 1
+def test_track_refuses_in_one_line(diagnosed, args, message, capsys, monkeypatch):
+    code, err = refused("track", *args, cwd=diagnosed, capsys=capsys, monkeypatch=monkeypatch)
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
