@@ -113,6 +113,28 @@ def test_the_fmu_runs_in_fmpy_without_torchpaml(name, tmp_path):
     assert _relative(np.load(tmp_path / "y.npy"), model.simulate(record)) < TOLERANCE
 
 
+def test_the_onnx_step_of_a_hybrid_carries_the_residual_filter(tmp_path):
+    """A hybrid (physics + the Chebyshev-Hammerstein residual, its coefficients random): the ONNX step, the residual's
+    filter states after the physics' in x, reproduces torchpaml's hybrid output to 1e-6 (the residual's filter is
+    discretised exactly at the records' interval)."""
+    onnxruntime = pytest.importorskip("onnxruntime", reason="the ONNX export is checked by onnxruntime ([export])")
+    residual = ChebyshevHammerstein.for_sampling(1.0, 0.05)
+    with torch.no_grad():
+        for parameter in (residual.numerator, residual.direct):
+            parameter.copy_(torch.randn(parameter.shape, generator=torch.Generator().manual_seed(3), dtype=torch.float64))
+    model = FittedModel(Oscillator(zeta=0.2) + Hysteresis(0.5, 0.5, 0.1), RK4(substeps=1), residual, step=0.05)
+    (path,) = export_model(model, onnx=tmp_path / "hybrid.onnx")
+    session = onnxruntime.InferenceSession(str(path))
+    t = time_grid(30.0, 0.05)
+    record = Record(t, 0.9 * pseudorandom(t, 1.0, seed=4)[0], torch.zeros(len(t), 1))
+    x, y, T, U = np.zeros(session.get_inputs()[1].shape[0]), [], record.t.numpy(), record.u.numpy()
+    for k in range(len(T)):
+        after = min(k + 1, len(T) - 1)
+        x, out = session.run(None, {"t": T[k:k + 1], "x": x, "u0": U[k], "u1": U[after], "h": np.array([0.05])})
+        y.append(out)
+    assert len(x) == 3 + residual.n * residual.order and _relative(np.array(y), model.simulate(record)) < TOLERANCE
+
+
 class Erf(Oscillator):
     """A user's physics with an operation the exporter does not know (erf)."""
 
@@ -122,8 +144,8 @@ class Erf(Oscillator):
 
 @pytest.mark.parametrize("model, message", [
     (FittedModel(Erf(), RK4(substeps=1)), "does not know the operation aten.special_erf.default"),
-    (FittedModel(Oscillator(), RK4(), ChebyshevHammerstein.for_sampling(2.0, 0.05)),
-     "cannot export the residual ChebyshevHammerstein"),
+    (FittedModel(Oscillator(), RK4(), ChebyshevHammerstein.for_sampling(2.0, 0.05), step=0.05),
+     r"cannot export the residual of a hybrid \(hybrid.pt\) as code"),
     (FittedModel(Oscillator(), TRBDF2(substeps=1)), "simulated by the implicit TRBDF2"),
     (FittedModel(Oscillator(), Exact()), "has no fixed step to print"),
 ])

@@ -21,6 +21,7 @@ from sympy.printing.pycode import PythonCodePrinter
 
 from torchpaml._errors import ConfigurationError
 from torchpaml._export.closed_form import ClosedForm, closed_form
+from torchpaml._export.residual_step import ResidualStep, residual_step
 from torchpaml._fit.fitted_model import FittedModel
 
 __all__ = ["ExportedStep", "c_code", "exported_step", "latex_code", "python_code"]
@@ -32,12 +33,21 @@ EXACT_SUBSTEP = 0.05
 
 @dataclass(frozen=True)
 class ExportedStep:
-    """What an exporter prints: the closed form, the RK4 substeps per sample interval, and the input's hold."""
+    """What an exporter prints: the closed form, the RK4 substeps per sample interval, the input's hold, and the
+    residual's one-step map where the model has one (the ONNX export alone prints it)."""
 
     form: ClosedForm
     substeps: int
     hold: str
     equation: str
+    residual: ResidualStep | None = None
+
+    def grey_box(self, what: str) -> ExportedStep:
+        """This step, refused in one line where it has a residual: ``what`` (code, an FMU) prints the grey box."""
+        if self.residual is not None:
+            raise ConfigurationError(f"cannot export the residual of a hybrid (hybrid.pt) as {what}: they print the "
+                                     "grey box; export model.pt, or the hybrid's one-step map as ONNX (--onnx)")
+        return self
 
 
 def _substeps(model: FittedModel) -> int:
@@ -61,12 +71,16 @@ def _substeps(model: FittedModel) -> int:
 
 
 def exported_step(model: FittedModel) -> ExportedStep:
-    """The closed form of ``model``'s physics and its step (module docstring); refuses a residual in one line."""
-    if model.residual is not None:
-        raise ConfigurationError(f"cannot export the residual {type(model.residual).__name__} (a hybrid, hybrid.pt): "
-                                 "the exporters print the grey box; export model.pt")
+    """The closed form of ``model``'s physics and its step (module docstring), with the residual's one-step map
+    (:mod:`~torchpaml._export.residual_step`) at the records' sampling interval where the model has one."""
     form = closed_form(model.physics, model.inputs, model.outputs)
-    return ExportedStep(form, _substeps(model), model.hold, model.physics.equation())
+    residual = None
+    if model.residual is not None:
+        if model.step is None:
+            raise ConfigurationError("cannot export the residual without the records' sampling interval (its filter is "
+                                     "discretised at it): save the hybrid from a diagnosis, or give FittedModel(step=)")
+        residual = residual_step(model.residual, form.inputs, model.step)
+    return ExportedStep(form, _substeps(model), model.hold, model.physics.equation(), residual)
 
 
 def _assignments(printer, names, expressions, indent: str, terminator: str = "") -> list[str]:
@@ -75,7 +89,7 @@ def _assignments(printer, names, expressions, indent: str, terminator: str = "")
 
 def python_code(step: ExportedStep) -> str:
     """The Python text (module docstring)."""
-    form, printer = step.form, PythonCodePrinter({"standard": "python3"})
+    form, printer = step.grey_box("code").form, PythonCodePrinter({"standard": "python3"})
     x = ", ".join(s.name for s in form.states) + ","
     u = ", ".join(s.name for s in form.inputs) + ","
     rates = _assignments(printer, [f"d_{s.name}" for s in form.states], form.rates, "    ")
@@ -135,7 +149,7 @@ def simulate(t, u, x0=None):
 
 def c_code(step: ExportedStep) -> str:
     """The C99 text (module docstring): ``derivative``, ``output`` and ``step`` on double arrays."""
-    form, printer = step.form, C99CodePrinter()
+    form, printer = step.grey_box("code").form, C99CodePrinter()
     unpack = "".join(f"    const double {s.name} = state_[{i}];\n" for i, s in enumerate(form.states)) + \
         "".join(f"    const double {s.name} = input_[{i}];\n" for i, s in enumerate(form.inputs))
     rates = "".join(f"    rate_[{i}] = {printer.doprint(e)};\n" for i, e in enumerate(form.rates))
@@ -185,7 +199,7 @@ static void step(double t, double *x, const double *u0, const double *u1, double
 
 def latex_code(step: ExportedStep) -> str:
     """The LaTeX text: one line per rate and per output."""
-    form = step.form
+    form = step.grey_box("code").form
     lines = [rf"\dot{{{sympy.latex(s)}}} &= {sympy.latex(e)}" for s, e in zip(form.states, form.rates)]
     lines += [rf"{sympy.latex(sympy.Symbol(name))} &= {sympy.latex(e)}" for name, e in zip(form.outputs, form.output)]
     return "\\begin{aligned}\n" + " \\\\\n".join(lines) + "\n\\end{aligned}\n"

@@ -194,7 +194,9 @@ def _compile(source: Path, library: Path) -> None:
 
 def write_fmu(step: ExportedStep, path: str | Path) -> Path:
     """Write the FMU of ``step`` (module docstring) to ``path``; returns it."""
-    import fmpy  # noqa: F401  checked by _headers first, for its message
+    step = step.grey_box("an FMU")
+    _headers()  # FMPy present, else the one-line refusal
+    import fmpy
 
     platform = fmpy.platform
     if not platform.startswith(("linux", "darwin")):
@@ -208,7 +210,6 @@ def write_fmu(step: ExportedStep, path: str | Path) -> Path:
         folder = Path(folder)
         (folder / "model.c").write_text(source)
         library = folder / f"{identifier}{fmpy.sharedLibraryExtension}"
-        _headers()
         _compile(folder / "model.c", library)
         path.parent.mkdir(parents=True, exist_ok=True)
         with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:

@@ -2,7 +2,9 @@ r"""The model's one-step map as an ONNX graph, built from the closed form node b
 
 The graph maps ``t`` (1,), ``x`` (n,), ``u0`` (m,), ``u1`` (m,) and ``h`` (1,), all float64, to ``x_next`` (n,),
 the state one sample later by the model's RK4 step (:func:`~torchpaml._export.code.python_code`'s ``step``), and
-``y`` (p,), the output $h(x, u_0)$ at the current sample. Run it in a loop (onnxruntime, or any ONNX runtime) to
+``y`` (p,), the output $h(x, u_0)$ at the current sample. A hybrid's residual adds its filter's states after the
+physics' in ``x`` (zero at the start) and its output to ``y`` (:mod:`~torchpaml._export.residual_step`: exact at the
+records' sampling interval, which ``h`` must then be). Run it in a loop (onnxruntime, or any ONNX runtime) to
 simulate a record: $y_k$ from $x_k$, then $x_{k+1}$. Each sympy operation of the closed form becomes ONNX nodes
 (:data:`FUNCTIONS`, arithmetic, powers, ``Piecewise`` as ``Where``); its common subexpressions are computed once
 (``sympy.cse``). An operation without an ONNX node is refused in one line naming it.
@@ -141,18 +143,25 @@ def write_onnx(step: ExportedStep, path: str | Path) -> Path:
         from onnx import TensorProto, helper
     except ImportError:
         raise ConfigurationError("writing ONNX needs the onnx package: pip install torchpaml[export]") from None
-    form = step.form
+    form, residual = step.form, step.residual
     n, m, p = len(form.states), len(form.inputs), len(form.outputs)
+    extra = 0 if residual is None else len(residual.states)
     graph = _Graph(step.equation)
-    x, u0, u1 = _split(graph, "x", n, "xs"), _split(graph, "u0", m, "u0s"), _split(graph, "u1", m, "u1s")
+    states = _split(graph, "x", n + extra, "xs")
+    x, z = states[:n], states[n:]
+    u0, u1 = _split(graph, "u0", m, "u0s"), _split(graph, "u1", m, "u1s")
     x_next = _rk4(graph, step, "t", x, u0, u1, "h")
     y = graph.evaluate(list(form.output), {**dict(zip(form.states, x)), **dict(zip(form.inputs, u0))})
+    if residual is not None:
+        env = {**dict(zip(residual.states, z)), **dict(zip(form.inputs, u0)), **dict(zip(residual.following, u1))}
+        x_next += graph.evaluate(list(residual.next_states), env)
+        y = [graph.node("Add", [a, b]) for a, b in zip(y, graph.evaluate(list(residual.output), env))]
     graph.nodes.append(helper.make_node("Concat", x_next, ["x_next"], axis=0))
     graph.nodes.append(helper.make_node("Concat", y, ["y"], axis=0))
     value = lambda name, size: helper.make_tensor_value_info(name, TensorProto.DOUBLE, [size])  # noqa: E731
     model = helper.make_model(
-        helper.make_graph(graph.nodes, "step", [value("t", 1), value("x", n), value("u0", m), value("u1", m),
-                                                value("h", 1)], [value("x_next", n), value("y", p)]),
+        helper.make_graph(graph.nodes, "step", [value("t", 1), value("x", n + extra), value("u0", m), value("u1", m),
+                                                value("h", 1)], [value("x_next", n + extra), value("y", p)]),
         producer_name="torchpaml", opset_imports=[helper.make_opsetid("", 17)])
     model.doc_string = f"{step.equation}: RK4, {step.substeps} substep(s) per sample, {step.hold} input"
     onnx.checker.check_model(model)
