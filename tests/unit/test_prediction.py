@@ -80,3 +80,21 @@ def test_a_record_with_other_channels_is_refused():
     model = FittedModel(Oscillator(), RK4(), inputs=("force",), outputs=("x",))
     with pytest.raises(DataError, match=r"names its inputs \['u'\]; the model was fitted on \['force'\]"):
         predict(model, _record())
+
+
+def test_a_users_physics_with_two_outputs_predicts_with_a_band_per_output():
+    """tests/two_mass.py (a user's physics, outputs x1 and x2), its friction's uncertainty only: the band is zero
+    where the second mass rests and widens where it slides."""
+    from two_mass import TwoMass
+    from torchpaml import CoulombFriction
+
+    physics = TwoMass() + CoulombFriction(0.4).on("v2")
+    uncertainty = Uncertainty({"coulomb_friction_v2.Fc": 0.05}, {"coulomb_friction_v2.Fc": (0.3, 0.5)},
+                              torch.eye(1, dtype=torch.float64), 1.0, None)
+    model = FittedModel(physics, RK4(substeps=2), inputs=("u",), outputs=("x1", "x2"), uncertainty=uncertainty)
+    t = time_grid(10.0, 0.05)
+    record = Record(t, pseudorandom(t, 1.0, seed=1)[0], torch.zeros(len(t), 2), metadata={"outputs": ["x1", "x2"]})
+    prediction = predict(model, record, level=0.9)
+    half = prediction.upper - prediction.y
+    assert prediction.y.shape == half.shape == (len(t), 2) and prediction.states.shape == (len(t), 4)
+    assert float(half[0].abs().max()) == 0.0 and float(half[:, 1].max()) > 0.0 and torch.isfinite(half).all()
