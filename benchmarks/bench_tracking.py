@@ -10,22 +10,14 @@ microsecond per sample. One thread.
 """
 
 import argparse
-import time
 
 import torch
 
 from torchpaml import RK4, CoulombFriction, FittedModel, Oscillator, Record, Tracker, pseudorandom, simulate, time_grid
 
+from bench_simulation import best  # the same timing as the simulation benchmark's
+
 H = 0.001
-
-
-def best(work, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def main() -> None:
