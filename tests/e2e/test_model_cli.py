@@ -38,12 +38,13 @@ def refused(*args, cwd, capsys, monkeypatch) -> tuple[int, str]:
 def diagnosed(tmp_path_factory):
     """An oscillator with a cubic stiffness diagnosed on the library physics: the folder with model.pt."""
     folder = tmp_path_factory.mktemp("diagnosed")
-    for name, seed in (("train", 1), ("val", 2)):
-        done = run("simulate", "--physics", "oscillator", "--effect", "cubic_stiffness=2", "--duration", "30",
-                   "--dt", "0.05", "--noise", "0.01", "--seed", str(seed), "--out", f"{name}.csv", cwd=folder)
-        assert done.returncode == 0, done.stderr
+    with pytest.MonkeyPatch.context() as patch:  # the records written in this process; the diagnosis on one thread
+        patch.setattr("sys.argv", ["torchpaml"])
+        for name, seed in (("train", 1), ("val", 2)):
+            main(["simulate", "--physics", "oscillator", "--effect", "cubic_stiffness=2", "--duration", "30", "--dt",
+                  "0.05", "--noise", "0.01", "--seed", str(seed), "--out", str(folder / f"{name}.csv")])
     done = run("diagnose", "--data", "train.csv", "--validation", "val.csv", "--physics", "oscillator",
-               "--effect", "cubic_stiffness", "--effect", "coulomb_friction", "--out", "out", "--quiet", cwd=folder)
+               "--effect", "cubic_stiffness", "--out", "out", "--quiet", cwd=folder)
     assert done.returncode == 0, done.stderr
     return folder
 
