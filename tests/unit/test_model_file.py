@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from torchpaml import (RK4, ChebyshevHammerstein, ConfigurationError, CoulombFriction, Estimate, FittedModel,
-                       Oscillator, Record, Rest, load_model, pseudorandom, save_model, time_grid)
+from torchpaml import (RK4, ChebyshevHammerstein, ConfigurationError, CoulombFriction, DiscoveredForce, Estimate,
+                       FittedModel, Oscillator, Record, Rest, load_model, pseudorandom, save_model, time_grid)
 from torchpaml._fit.uncertainty import Uncertainty
 from torchpaml._physics.memory_effects import Hysteresis
 from two_mass import TwoMass
@@ -37,13 +37,19 @@ def _hysteresis() -> FittedModel:
     return FittedModel(physics, RK4(substeps=1), residual)
 
 
+def _discovered() -> FittedModel:
+    """A discovered closed form (a DiscoveredForce, its coefficients parameters) on the library oscillator."""
+    force = DiscoveredForce(terms=["v**3", "sign(v)"], coefficients=[-0.5, -0.2])
+    return FittedModel(Oscillator(zeta=0.15) + force, RK4(substeps=1), step=0.05)
+
+
 def _record(inputs: int = 1, outputs: int = 1) -> Record:
     t = time_grid(10.0, 0.05)
     u = torch.cat([pseudorandom(t, 1.0, seed=i) for i in range(inputs)], dim=-1)[0]
     return Record(t, u, torch.zeros(len(t), outputs))
 
 
-@pytest.mark.parametrize("build", [_two_mass, _hysteresis])
+@pytest.mark.parametrize("build", [_two_mass, _hysteresis, _discovered])
 def test_a_saved_model_loads_bit_for_bit(build, tmp_path):
     model = build()
     loaded = load_model(save_model(model, tmp_path / "model.pt"))
