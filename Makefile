@@ -38,7 +38,7 @@ test: install
 	$(PYTHON) -m pytest -q -n 2 -m "not slow and not experiment"; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
 
 test-all: install-fleet install-export
-	$(PYTHON) -m pytest -q -n 2 -m "not experiment"; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
+	$(PYTHON) -m pytest -q -n 2 --dist loadgroup -m "not experiment"; status=$$?; if [ $$status -eq 5 ]; then exit 0; else exit $$status; fi
 
 # The whole experiments on the measured data (Silverbox's and the tanks' discovery, the Bouc-Wen ladder): about four
 # minutes; they skip without ../shared/data.

@@ -14,7 +14,8 @@ import torch
 from torchpaml import Record, load_model, predict
 from torchpaml.cli import main
 
-pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+#: an end-to-end run (the slow lane), on one worker of xdist so that the diagnosis it reads runs once
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("model_cli")]
 
 ONE_THREAD = {**os.environ, "OMP_NUM_THREADS": "1"}
 

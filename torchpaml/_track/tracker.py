@@ -16,7 +16,8 @@ before the next alarm.
 **The parameter that moved** is named once ``attribution`` seconds of the stream after the alarm have arrived (the
 alarm keeps the time it was raised): the change is dated where the cumulative sum of $\nu_k - 2p$ over the $2W$
 samples before the alarm is lowest, and on the samples from there to ``attribution`` seconds after the alarm, each
-physical parameter alone (with the state at the change) is refitted from the model's values
+parameter the fit estimated (the learnable ones; every physical parameter where none is) is refitted alone, with the
+state at the change, from the model's values
 (:func:`~torchpaml.fit_physics`, Gauss-Newton on the parameters' sensitivities). The parameter whose refit explains the
 samples best is named. At the end of a record (:func:`track`, :meth:`Tracker.flush`) an alarm is named on what
 arrived.
@@ -252,7 +253,8 @@ class Tracker:
         window = Record(t[begin:k + self.after + 1], u[begin:k + self.after + 1], y[begin:k + self.after + 1], "alarm",
                         {"inputs": list(self.model.inputs)} if self.model.inputs else {}, self.model.hold)
         start = torch.from_numpy(states[begin].copy())
-        names = list(self.model.physics.physical_parameters())
+        physics = self.model.physics
+        names = physics.learnable_names() or list(physics.physical_parameters())
         try:
             misfit = [self._refit(name, window, start) for name in names]
         except TorchpamlError:
