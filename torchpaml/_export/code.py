@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass
 
 import sympy
+import torch
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.pycode import PythonCodePrinter
 
@@ -65,8 +66,8 @@ def _substeps(model: FittedModel) -> int:
         raise ConfigurationError(f"cannot export {model.physics.display_name}: its solver ({model.solver!r}) has no "
                                  "fixed step to print; fit it with RK4, or save it from a diagnosis (which records "
                                  "the sampling interval)")
-    A = base.state_space()[0]
-    rate = float(sympy.Matrix(A.tolist()).norm(2)) if A.numel() else 0.0
+    A = base.state_space()[0].detach()
+    rate = float(torch.linalg.matrix_norm(A, ord=2)) if A.numel() else 0.0
     return max(1, math.ceil(model.step * rate / EXACT_SUBSTEP))
 
 

@@ -208,21 +208,6 @@ class CompiledFilter:
         """:meth:`run_into` on arrays given by their addresses (kept by a caller that reuses its arrays)."""
         return self._run(samples, start, *addresses)
 
-    def run(self, start: int, t: np.ndarray, u: np.ndarray, y: np.ndarray, x: np.ndarray, P: np.ndarray,
-            Q: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Filter samples ``start`` onwards of ``t`` (n,), ``u`` (n, m), ``y`` (n, p); ``x`` and ``P`` are updated
-        in place. Returns the innovations (n, p), the normalised innovations squared (n,) and the filtered states
-        (n, N), their first ``start`` rows zero."""
-        n = len(t)
-        innovation, nis, states = np.zeros((n, self.outputs)), np.zeros(n), np.zeros((n, self.states))
-        arrays = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in (t, u, y))
-        failed = self.run_into(start, (*arrays, x, P, np.ascontiguousarray(Q), np.ascontiguousarray(R), innovation,
-                                       nis, states))
-        if failed:
-            raise ConfigurationError(f"the filter's innovation covariance stopped being positive definite at sample "
-                                     f"{failed - 1} (t = {t[failed - 1]:.6g} s); raise the measurement noise (noise=)")
-        return innovation, nis, states
-
 
 def compiled_filter(step: ExportedStep) -> CompiledFilter:
     """The filter of ``step`` compiled (cached by the SHA-256 of its source), loaded."""
