@@ -56,9 +56,10 @@ def _substeps(model: FittedModel) -> int:
     simulated exactly, enough for :data:`EXACT_SUBSTEP` at the records' sampling interval."""
     method = model.solver.stepping()
     if method is not None and method.stability is None:
-        raise ConfigurationError(f"cannot export {model.physics.display_name}: it is simulated by the implicit "
-                                 f"{type(method).__name__} (stiff physics), and the exported step is explicit RK4; "
-                                 "simulate it with RK4 where it is not stiff")
+        raise ConfigurationError(f"{model.physics.display_name} is simulated by the implicit {type(method).__name__} (stiff "
+                                 "physics), and the exports and the tracker's filter step by explicit RK4, whose "
+                                 "numbers would not be the model's; where the physics allows it, fit and save it with "
+                                 "an explicit solver (solver=RK4(substeps=N))")
     if method is not None:
         return method.substeps
     base = model.physics.linear_base()

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import logging
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -47,6 +48,8 @@ from torchpaml._model.prediction import check_channels
 from torchpaml._track.filter_code import compiled_filter
 
 __all__ = ["Alarm", "Tracker", "Tracking", "track"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -209,6 +212,7 @@ class Tracker:
     def feed(self, record: Record) -> Tracking:
         """Filter the samples of ``record`` (the next part of a stream) and return what was seen on them."""
         check_channels(self.model, record)
+        log.info("tracking %d samples (%.6g s to %.6g s)", len(record.t), float(record.t[0]), float(record.t[-1]))
         started = time.perf_counter()
         t, u, y = (np.ascontiguousarray(v.numpy()) for v in (record.t, record.u, record.y))  # C reads them in order
         innovation, statistic, states, alarms = self._advance(t, u, y)
@@ -248,6 +252,7 @@ class Tracker:
         """The parameter that moved at the alarm at sample ``k`` of ``recent`` (t, u, y, states, nis; module
         docstring)."""
         t, u, y, states, nis = recent
+        log.info("alarm at t = %.6g s: refitting the fitted parameters one at a time to name the one that moved", t[k])
         first = max(0, k - 2 * self.samples)
         begin = first + int(np.argmin(np.cumsum(nis[first: k + 1] - 2 * y.shape[1])))
         window = Record(t[begin:k + self.after + 1], u[begin:k + self.after + 1], y[begin:k + self.after + 1], "alarm",

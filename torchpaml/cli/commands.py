@@ -130,7 +130,8 @@ def _track(args: argparse.Namespace) -> None:
     options = {"window": args.window, "alpha": args.alpha, "attribution": args.attribution}
     if args.noise:
         options["noise"] = tuple(args.noise)
-    tracking = track(model, record, **options)
+    with progress_lines(f"{args.prog} track", enabled=not args.quiet):
+        tracking = track(model, record, **options)
     path = write_tracking(tracking, args.out)
     alarms = "; ".join(f"t = {a.t:.4g} s ({a.parameter or 'parameter undetermined'})" for a in tracking.alarms)
     print(f"wrote {path}: {len(record.t)} samples in {tracking.seconds:.3g} s, "
@@ -150,6 +151,7 @@ def _track_arguments(parser: argparse.ArgumentParser) -> None:
                         help="an output's noise standard deviation (repeat per output; default: the model's)")
     parser.add_argument("--hold", choices=["foh", "zoh"], help="how the input moved between samples "
                         "(default: the file's metadata, else foh)")
+    parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     parser.set_defaults(run=_track)
 
 

@@ -169,7 +169,9 @@ def diagnose_command(
                                    initial_state=policy_named(initial_state), discovery=discovery, budget=budget)
     path = Path(out) / "diagnosis.json"
     print(ranking_table(diagnosis.ranking))
-    print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/ and tensorboard/")
+    models = ", ".join(str(path.parent / name) for name in ("model.pt", "hybrid.pt") if (path.parent / name).exists())
+    print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/, tensorboard/"
+          + (f" and {models}" if models else ""))
     return diagnosis_to_dict(diagnosis)
 
 
