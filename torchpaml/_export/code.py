@@ -25,7 +25,7 @@ from torchpaml._export.closed_form import ClosedForm, closed_form
 from torchpaml._export.residual_step import ResidualStep, residual_step
 from torchpaml._fit.fitted_model import FittedModel
 
-__all__ = ["ExportedStep", "c_code", "exported_step", "latex_code", "python_code"]
+__all__ = ["ExportedStep", "c_code", "c_unpacking", "exported_step", "latex_code", "python_code"]
 
 #: Largest $h\,\rho(A)$ per RK4 substep where a model simulated exactly (linear physics) is exported: RK4's local
 #: error is then $(0.05)^5/120 \approx 3\cdot10^{-9}$ of the state per substep.
@@ -149,11 +149,16 @@ def simulate(t, u, x0=None):
 '''
 
 
+def c_unpacking(form: ClosedForm) -> str:
+    """C lines naming each state and input of ``form`` from the arrays ``state_`` and ``input_``."""
+    return "".join(f"    const double {s.name} = state_[{i}];\n" for i, s in enumerate(form.states)) + \
+        "".join(f"    const double {s.name} = input_[{i}];\n" for i, s in enumerate(form.inputs))
+
+
 def c_code(step: ExportedStep) -> str:
     """The C99 text (module docstring): ``derivative``, ``output`` and ``step`` on double arrays."""
     form, printer = step.grey_box("code").form, C99CodePrinter()
-    unpack = "".join(f"    const double {s.name} = state_[{i}];\n" for i, s in enumerate(form.states)) + \
-        "".join(f"    const double {s.name} = input_[{i}];\n" for i, s in enumerate(form.inputs))
+    unpack = c_unpacking(form)
     rates = "".join(f"    rate_[{i}] = {printer.doprint(e)};\n" for i, e in enumerate(form.rates))
     outputs = "".join(f"    output_[{i}] = {printer.doprint(e)};\n" for i, e in enumerate(form.output))
     n, m = len(form.states), len(form.inputs)

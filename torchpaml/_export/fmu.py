@@ -12,8 +12,6 @@ the FMI 2 headers that FMPy ships (``pip install torchpaml[export]``).
 
 from __future__ import annotations
 
-import shutil
-import subprocess
 import tempfile
 import uuid
 import zipfile
@@ -22,6 +20,7 @@ from xml.sax.saxutils import quoteattr
 
 from torchpaml._errors import ConfigurationError
 from torchpaml._export.code import ExportedStep, c_code
+from torchpaml._export.compiler import compile_library
 
 __all__ = ["write_fmu"]
 
@@ -180,18 +179,6 @@ def _headers() -> Path:
     return Path(fmpy.__file__).parent / "c-code"
 
 
-def _compile(source: Path, library: Path) -> None:
-    compiler = shutil.which("cc") or shutil.which("gcc")
-    if compiler is None:
-        raise ConfigurationError("writing an FMU compiles its C source, and no C compiler (cc, gcc) is on PATH; install "
-                                 "one, or export the C text alone (--code model.c)")
-    done = subprocess.run([compiler, "-shared", "-fPIC", "-O2", f"-I{_headers()}", "-o", str(library), str(source),
-                           "-lm"], capture_output=True, text=True)
-    if done.returncode != 0:
-        first = (done.stderr.strip().splitlines() or ["no message"])[0]
-        raise ConfigurationError(f"the FMU's C source did not compile ({first}); report it with the model")
-
-
 def write_fmu(step: ExportedStep, path: str | Path) -> Path:
     """Write the FMU of ``step`` (module docstring) to ``path``; returns it."""
     step = step.grey_box("an FMU")
@@ -207,10 +194,8 @@ def write_fmu(step: ExportedStep, path: str | Path) -> Path:
     guid = "{" + str(uuid.uuid4()) + "}"
     source = f'#define GUID "{guid}"\n' + c_code(step) + INTERFACE
     with tempfile.TemporaryDirectory() as folder:
-        folder = Path(folder)
-        (folder / "model.c").write_text(source)
-        library = folder / f"{identifier}{fmpy.sharedLibraryExtension}"
-        _compile(folder / "model.c", library)
+        library = compile_library(source, Path(folder) / f"{identifier}{fmpy.sharedLibraryExtension}",
+                                  "writing an FMU", _headers())
         path.parent.mkdir(parents=True, exist_ok=True)
         with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
             archive.writestr("modelDescription.xml", _description(step, identifier, guid))

@@ -21,8 +21,6 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
-import shutil
-import subprocess
 import tempfile
 from pathlib import Path
 
@@ -30,8 +28,8 @@ import numpy as np
 import sympy
 from sympy.printing.c import C99CodePrinter
 
-from torchpaml._errors import ConfigurationError
-from torchpaml._export.code import ExportedStep, c_code
+from torchpaml._export.code import ExportedStep, c_code, c_unpacking
+from torchpaml._export.compiler import compile_library
 
 __all__ = ["CompiledFilter", "compiled_filter", "filter_source"]
 
@@ -160,10 +158,8 @@ int track_block(int n, int start, const double *t, const double *u, const double
 
 def _matrix_function(name: str, signature: str, matrix: sympy.Matrix, step: ExportedStep) -> str:
     printer = C99CodePrinter()
-    form = step.form
     matrix = matrix.applyfunc(lambda e: e.rewrite(sympy.Piecewise) if e.has(sympy.Heaviside) else e)
-    unpack = "".join(f"    const double {s.name} = state_[{i}];\n" for i, s in enumerate(form.states)) + \
-        "".join(f"    const double {s.name} = input_[{i}];\n" for i, s in enumerate(form.inputs))
+    unpack = c_unpacking(step.form)
     body = "".join(f"    out_[{i}] = {printer.doprint(value)};\n" for i, value in enumerate(matrix))
     return f"static void {name}({signature}) {{\n    (void)state_; (void)input_;\n{unpack}{body}}}\n"
 
@@ -215,19 +211,6 @@ def compiled_filter(step: ExportedStep) -> CompiledFilter:
     digest = hashlib.sha256(source.encode()).hexdigest()[:16]
     library = _cache() / f"filter_{digest}.so"
     if not library.exists():
-        compiler = shutil.which("cc") or shutil.which("gcc")
-        if compiler is None:
-            raise ConfigurationError("tracking compiles the model's filter, and no C compiler (cc, gcc) is on PATH; "
-                                     "install one")
-        with tempfile.TemporaryDirectory() as folder:
-            code = Path(folder) / "filter.c"
-            code.write_text(source)
-            built = Path(folder) / library.name
-            done = subprocess.run([compiler, "-shared", "-fPIC", "-O2", "-o", str(built), str(code), "-lm"],
-                                  capture_output=True, text=True)
-            if done.returncode != 0:
-                first = (done.stderr.strip().splitlines() or ["no message"])[0]
-                raise ConfigurationError(f"the model's filter did not compile ({first}); report it with the model")
-            shutil.move(str(built), library)
+        compile_library(source, library, "tracking")
     form = step.form
     return CompiledFilter(library, len(form.states), len(form.inputs), len(form.outputs))
