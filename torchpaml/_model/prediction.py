@@ -15,6 +15,7 @@ the error of the model class are not in it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from statistics import NormalDist
 
@@ -83,7 +84,7 @@ def output_std(model: FittedModel, record: Record, x0: torch.Tensor) -> torch.Te
                                  "without a band")
     std = model.uncertainty.std
     names = [name for name in std if name in model.physics.physical_parameters()]
-    undetermined = [name for name in names if not torch.isfinite(torch.tensor(std[name]))]
+    undetermined = [name for name in names if not math.isfinite(std[name])]
     if undetermined:
         raise ConfigurationError(f"the fit did not determine {undetermined} (infinite standard error): the band would "
                                  "be unbounded; fix those parameters and fit again, or predict without a band")

@@ -120,8 +120,9 @@ class Tracker:
         if step is None or not step > 0 or not window > 0 or not 0 < alpha < 1:
             raise ConfigurationError(f"tracking needs a sampling interval (step={step}), a window > 0 s "
                                      f"(window={window}) and 0 < alpha < 1 (alpha={alpha})")
-        self.model, self.outputs = model, tuple(model.outputs) or _default_names(p)
-        self.filter = compiled_filter(exported_step(dataclasses.replace(model, residual=None)))
+        step_map = exported_step(dataclasses.replace(model, residual=None))
+        self.model, self.outputs = model, tuple(model.outputs) or step_map.form.outputs
+        self.filter = compiled_filter(step_map)
         self.samples = max(1, round(window / step))
         self.threshold = float(chi2.isf(alpha, p * self.samples))
         self.rearm = float(p * self.samples)
@@ -317,10 +318,6 @@ class _Ring:
         end = self.count % self.capacity
         parts = [nis[end - kept:end]] if kept <= end else [nis[self.capacity - (kept - end):], nis[:end]]
         return float(np.concatenate([np.zeros(n - kept), *parts]).sum())
-
-
-def _default_names(p: int) -> tuple[str, ...]:
-    return ("y",) if p == 1 else tuple(f"y{i}" for i in range(1, p + 1))
 
 
 def track(model: FittedModel, record: Record, **options) -> Tracking:
