@@ -1,7 +1,7 @@
 r"""The closed form of a physics: its rates $f(t, x, u)$ and its output $h(x, u)$ as sympy expressions.
 
 ``torch.export`` traces ``physics.derivative`` and ``physics.output`` (one row) into a graph of ATen operations; each
-operation is then applied to numpy arrays of sympy expressions (:mod:`~torchpaml._export.aten`), the inputs being
+operation is then applied to numpy arrays of sympy expressions (:mod:`~torchpaml._symbolic.aten`), the inputs being
 the symbols $t$, $x_i$ (the physics' state names) and $u_j$ (the input channels' names), the parameters their
 fitted values. Whatever the physics is written with (a user's class, library effects with their own states, a
 discovered closed form), the result is one expression per rate and per output. An operation the table does not
@@ -18,11 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import sympy
-import torch
-from torch import nn
 
-from torchpaml._errors import ConfigurationError
-from torchpaml._export.aten import interpret
+from torchpaml._symbolic.aten import interpret
+from torchpaml._symbolic.trace import traced
 from torchpaml._physics.base import AbstractPhysics
 
 __all__ = ["ClosedForm", "closed_form", "identifier"]
@@ -55,15 +53,6 @@ class ClosedForm:
     output: tuple[sympy.Expr, ...]
 
 
-class _Maps(nn.Module):
-    def __init__(self, physics: AbstractPhysics):
-        super().__init__()
-        self.physics = physics
-
-    def forward(self, t: torch.Tensor, x: torch.Tensor, u: torch.Tensor):
-        return self.physics.derivative(t, x, u), self.physics.output(x, u)
-
-
 def _names(given: tuple[str, ...], count: int, letter: str) -> list[str]:
     if len(given) == count:
         return [identifier(name) for name in given]
@@ -74,14 +63,7 @@ def closed_form(physics: AbstractPhysics, inputs: tuple[str, ...] = (), outputs:
     """The closed form of ``physics`` (module docstring); ``inputs`` and ``outputs`` name the channels (default
     ``u``/``y``, or the physics' own ``input_names``/``output_names``)."""
     n, m = physics.state_dim, physics.input_dim
-    example = (torch.zeros(1, dtype=torch.float64), torch.zeros(1, n, dtype=torch.float64),
-               torch.zeros(1, m, dtype=torch.float64))
-    try:
-        program = torch.export.export(_Maps(physics).eval(), example)
-    except Exception as error:  # noqa: BLE001 - torch.export reports what it cannot trace in many types
-        reason = str(error).strip().splitlines()[0] if str(error).strip() else type(error).__name__
-        raise ConfigurationError(f"cannot export {physics.display_name}: torch.export cannot trace its derivative or "
-                                 f"output ({reason[:200]})") from None
+    program = traced(physics)
     t = sympy.Symbol("t", real=True)
     x = [sympy.Symbol(name, real=True) for name in _names(tuple(physics.state_names), n, "x")]
     u = [sympy.Symbol(name, real=True) for name in _names(inputs or tuple(physics.input_names), m, "u")]

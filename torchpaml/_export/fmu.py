@@ -20,7 +20,7 @@ from xml.sax.saxutils import quoteattr
 
 from torchpaml._errors import ConfigurationError
 from torchpaml._export.code import ExportedStep, c_code
-from torchpaml._export.compiler import compile_library
+from torchpaml._symbolic.compiler import compile_library
 
 __all__ = ["write_fmu"]
 

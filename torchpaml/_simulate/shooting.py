@@ -50,6 +50,7 @@ import math
 import torch
 from torch.nn.utils import parametrize
 
+from torchpaml._simulate.compiled import sequential_states
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.method import Method
 from torchpaml._errors import ConfigurationError, SimulationError
@@ -196,9 +197,10 @@ def _trusted(ends: torch.Tensor, updated: torch.Tensor, scale: torch.Tensor, x0:
 
 
 def _newton(physics: Dynamics, layout: _Layout, x0: torch.Tensor, tol: float, max_sweeps: int,
-            differentiable: bool, guess: torch.Tensor | None):
+            differentiable: bool, guess: torch.Tensor | None, settled: bool = False):
     r"""Newton on the segment starts (module docstring), from ``guess``'s states at the starts if it is finite,
-    else from $x_0$ held.
+    else from $x_0$ held; ``settled``: the guess is the solution (the compiled RK4's,
+    :mod:`~torchpaml._simulate.compiled`), so the first sweep is already graded.
 
     A sweep takes forward differences (n + 1 copies) until the defects fall below :data:`GRADED_DEFECT`;
     from then on, when ``differentiable``, central ones (2n + 1 copies), whose T feeds gradients.
@@ -224,7 +226,7 @@ def _newton(physics: Dynamics, layout: _Layout, x0: torch.Tensor, tol: float, ma
     else:
         starts = x0[:, None].expand(-1, layout.S, -1).clone()
     scale = x0.abs().amax(dim=0).clamp(min=1.0)
-    defect = 0.0 if layout.S == 1 else math.inf  # one segment: its start is x0, exact
+    defect = 0.0 if layout.S == 1 or (settled and warm) else math.inf  # one segment: its start is x0, exact
     for sweep in range(1, max_sweeps + 1):
         checkpoint()  # a fit's budget (torchpaml._budget) stops a solve that does not settle
         graded = differentiable and defect <= GRADED_DEFECT
@@ -376,7 +378,10 @@ def solve_shooting(
     if warm is not None and not isinstance(warm, WarmStart):
         raise ConfigurationError(f"warm must be a torchpaml.WarmStart kept per record (warm=tp.WarmStart()), got "
                         f"{type(warm).__name__}")
-    if warm is not None and warm.states is not None:
+    exact = sequential_states(physics, t, u, x0, solver, hold)
+    if exact is not None:
+        guess = exact
+    elif warm is not None and warm.states is not None:
         guess = warm.states
     guess = base_guess(physics, t, u, x0, hold) if guess is None else _completed(guess, x0)
     length = solver.segment
@@ -385,7 +390,7 @@ def solve_shooting(
         try:
             with torch.no_grad():
                 states, T, starts = _newton(physics, layout, x0.detach(), tol, max_sweeps, sensitivities,
-                                            guess)
+                                            guess, settled=exact is not None)
             # constants of the solution: no_grad stops reverse mode, detach also stops forward mode's tangents
             solution = ShootingSolution(layout, states.detach(), T, None if starts is None else starts.detach())
             if warm is not None:
@@ -393,6 +398,7 @@ def solve_shooting(
             return solution
         except _NotConverged as last:
             guess = last.args[0] if bool(torch.isfinite(last.args[0]).all()) else guess
+            exact = None
             length = layout.L * GROWTH  # fewer, longer segments; one is plain sequential stepping, which always ends
 
 
@@ -424,5 +430,11 @@ def simulate_shooting(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: t
     """
     if len(t) < 2:
         return x0[:, None]
+    if not torch.is_grad_enabled():
+        states = sequential_states(physics, t, u, x0, solver, options.get("hold", "foh"))
+        if states is not None:
+            if warm is not None:
+                warm.states = states
+            return states
     solution = solve_shooting(physics, t, u, x0, solver, sensitivities=torch.is_grad_enabled(), warm=warm, **options)
     return solution.states(physics, x0)

@@ -185,6 +185,9 @@ class FixedStep(Solver):
     #: $|h\lambda|$ up to which the method is stable, ``None`` for an implicit, L-stable one
     #: (:mod:`~torchpaml._simulate.stiffness`).
     stability: ClassVar[float | None]
+    #: Whether the method is classical RK4, which the engine also runs compiled from the closed form
+    #: (:mod:`~torchpaml._simulate.compiled`); a new method steps by its ``sweep`` alone.
+    compiles: ClassVar[bool] = False
 
     def __post_init__(self):
         m = self.substeps
@@ -242,6 +245,7 @@ class RK4(FixedStep):
     middle: ClassVar[float] = 0.5
     coefficients: ClassVar[tuple[float, ...]] = RK4_COEFFICIENTS
     stability: ClassVar[float | None] = RK4_STABILITY
+    compiles: ClassVar[bool] = True
 
     def sweep(self, physics: Dynamics, x, stages):
         return rk4_sweep(physics, x, stages, self.substeps)

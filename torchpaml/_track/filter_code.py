@@ -19,9 +19,6 @@ caller keeps, so a stream is fed one sample or a thousand at a time with the sam
 from __future__ import annotations
 
 import ctypes
-import hashlib
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +26,7 @@ import sympy
 from sympy.printing.c import C99CodePrinter
 
 from torchpaml._export.code import ExportedStep, c_code, c_unpacking
-from torchpaml._export.compiler import compile_library
+from torchpaml._symbolic.compiler import cached_library
 
 __all__ = ["CompiledFilter", "compiled_filter", "filter_source"]
 
@@ -175,16 +172,6 @@ def filter_source(step: ExportedStep) -> str:
     return (c_code(step) + f"#define HOLD_FOH {int(step.hold == 'foh')}\n" + rates + output + _KALMAN)
 
 
-def _cache() -> Path:
-    folder = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "torchpaml" / "filters"
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        folder = Path(tempfile.gettempdir()) / "torchpaml-filters"
-        folder.mkdir(parents=True, exist_ok=True)
-    return folder
-
-
 class CompiledFilter:
     """The compiled ``track_block`` of one model (module docstring), with its sizes."""
 
@@ -206,11 +193,7 @@ class CompiledFilter:
 
 
 def compiled_filter(step: ExportedStep) -> CompiledFilter:
-    """The filter of ``step`` compiled (cached by the SHA-256 of its source), loaded."""
-    source = filter_source(step)
-    digest = hashlib.sha256(source.encode()).hexdigest()[:16]
-    library = _cache() / f"filter_{digest}.so"
-    if not library.exists():
-        compile_library(source, library, "tracking")
+    """The filter of ``step`` compiled (once per machine: :func:`~torchpaml._symbolic.compiler.cached_library`), loaded."""
+    library = cached_library(filter_source(step), "filter", "tracking")
     form = step.form
     return CompiledFilter(library, len(form.states), len(form.inputs), len(form.outputs))

@@ -159,26 +159,29 @@ def _argument(value, env: dict):
     return value
 
 
-def _inputs(program, values: dict[str, np.ndarray]) -> dict:
-    """The placeholders' values: parameters, buffers and constants as numbers, the user's inputs ``values`` in order
-    (``t``, ``x``, ``u``)."""
+def _inputs(program, values: dict[str, np.ndarray], tensors: dict[str, np.ndarray] | None) -> dict:
+    """The placeholders' values: parameters, buffers and constants as numbers (or as ``tensors`` gives them, by
+    target name), the user's inputs ``values`` in order (``t``, ``x``, ``u``)."""
     env, users = {}, iter(values.values())
-    tensors = {**program.state_dict, **program.constants}
+    tensors = {**program.state_dict, **program.constants, **(tensors or {})}
     for spec in program.graph_signature.input_specs:
         env[spec.arg.name] = _array(tensors[spec.target]) if spec.target is not None else next(users)
     return env
 
 
-def interpret(program, values: dict[str, np.ndarray], owner: str) -> tuple:
-    """The outputs of ``program`` (a ``torch.export`` program) on ``values``, as object arrays (module docstring)."""
-    env = _inputs(program, values)
+def interpret(program, values: dict[str, np.ndarray], owner: str,
+              tensors: dict[str, np.ndarray] | None = None) -> tuple:
+    """The outputs of ``program`` (a ``torch.export`` program) on ``values``, as object arrays (module docstring);
+    ``tensors`` replaces the numbers of the parameters and buffers it names (by target) with expressions, e.g.
+    symbols that a compiled function reads at run time."""
+    env = _inputs(program, values, tensors)
     for node in program.graph.nodes:
         if node.op == "call_function":
             action = OPS.get(node.target)
             if action is None:
                 raise ConfigurationError(f"cannot export {owner}: the exporter does not know the operation "
                                          f"{node.target}; write the physics with the operations listed in "
-                                         "torchpaml._export.aten.OPS")
+                                         "torchpaml._symbolic.aten.OPS")
             args = [_argument(a, env) for a in node.args]
             kwargs = {k: _argument(v, env) for k, v in node.kwargs.items()
                       if k not in ("dtype", "layout", "device", "pin_memory", "memory_format", "non_blocking")}

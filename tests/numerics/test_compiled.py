@@ -1,0 +1,125 @@
+"""The compiled RK4 (torchpaml._simulate.compiled) against the shooting engine's RK4 on the same records.
+
+Tolerances:
+- both take the same stages, hold and step coefficients; the rates are printed from the closed form, whose
+  arithmetic order differs from the tensors', so they agree to rounding (measured 5e-15 relative), held to 1e-12
+  against the engine's sequential result (one segment: no Newton);
+- gradients through the shooting engine started from the compiled states against reverse mode through every RK4
+  stage of one segment: the engine's sensitivities are central differences of the starts (error ~1e-10 each,
+  accumulated over the record's memory), held to 1e-6 relative, as in test_rk4.
+"""
+
+import pytest
+import torch
+
+from torchpaml import (RK4, AbstractPhysics, CoulombFriction, CubicStiffness, Hysteresis, Oscillator,
+                       PhysicalParameter, Positive, SimulationError, register_parameters, simulate, state_vector)
+from torchpaml._simulate import compiled
+
+SAMPLES = compiled.MIN_STEPS // 2 + 1  # two rows at one substep: just enough steps to compile
+
+
+def _drive(samples: int = SAMPLES, jitter: bool = False):
+    generator = torch.Generator().manual_seed(0)
+    steps = torch.full((samples,), 0.2, dtype=torch.float64)
+    if jitter:
+        steps = steps * (1 + 0.3 * torch.rand(samples, generator=generator, dtype=torch.float64))
+    t = torch.cumsum(steps, 0) - steps[0]
+    return t, 0.1 * torch.randn(2, samples, 1, generator=generator, dtype=torch.float64)
+
+
+def _hard():
+    return Oscillator(zeta=0.1, omega0=1.0, gain=1.0, learn=("zeta", "omega0")) + CubicStiffness(200.0)
+
+
+def _relative(a, b):
+    return float((a - b).abs().max() / b.abs().max())
+
+
+class Power(AbstractPhysics):
+    """$\\dot x = v$, $\\dot v = b u - c v - k x |x|^{p-1}$: a spring whose law is a plain attribute ``power``."""
+
+    state_names = ("x", "v")
+
+    def __init__(self, power: int = 3):
+        super().__init__()
+        self.power = power
+        register_parameters(self, [PhysicalParameter("k", 1.0, "1/s^2", Positive(), "spring"),
+                                   PhysicalParameter("c", 0.3, "1/s", Positive(), "damping")], ("k", "c"))
+
+    def derivative(self, t, x, u):
+        position, velocity = x.unbind(-1)
+        spring = self.k * position * position.abs() ** (self.power - 1)
+        return state_vector([velocity, u[..., 0] - self.c * velocity - spring])
+
+    def output(self, x, u):
+        return x[..., :1]
+
+
+@pytest.mark.parametrize("physics", [_hard(), Oscillator(zeta=0.2, omega0=1.0) + Hysteresis(),
+                                     Oscillator(zeta=0.2, omega0=1.0) + CoulombFriction(0.02)],
+                         ids=["cubic", "hysteresis", "friction"])
+@pytest.mark.parametrize("hold", ["foh", "zoh"])
+def test_the_compiled_rk4_is_the_engines_rk4(physics, hold):
+    t, u = _drive(jitter=hold == "zoh")
+    x0 = torch.tensor([[0.05, 0.0], [0.0, -0.1]], dtype=torch.float64)
+    x0 = torch.cat([x0, physics.initial_state(2)[:, 2:]], dim=1)
+    with torch.no_grad():
+        states = compiled.sequential_states(physics, t, u, x0, RK4(substeps=2), hold)
+        sequential = simulate(physics, t[:400], u[:, :400], x0, solver=RK4(substeps=2, segment=400), hold=hold)
+    assert states is not None
+    assert _relative(physics.output(states[:, :400], u[:, :400]), sequential) < 1e-12
+
+
+def test_new_parameters_need_no_new_compile_and_a_new_structure_gets_one():
+    physics = Power(3)
+    t, u = _drive()
+    x0 = physics.initial_state(2)
+    with torch.no_grad():
+        first = compiled.sequential_states(physics, t, u, x0, RK4(substeps=1), "foh")
+        form = compiled._FORMS[physics][1]
+        physics.parametrizations.k.original.add_(0.5)
+        stiffer = compiled.sequential_states(physics, t, u, x0, RK4(substeps=1), "foh")
+        assert compiled._FORMS[physics][1] is form
+        physics.power = 5
+        quintic = compiled.sequential_states(physics, t, u, x0, RK4(substeps=1), "foh")
+        assert compiled._FORMS[physics][1] is not form
+        reference = simulate(physics, t[:300], u[:, :300], x0, solver=RK4(substeps=1, segment=300))
+    assert _relative(first, stiffer) > 1e-3
+    assert _relative(physics.output(quintic[:, :300], u[:, :300]), reference) < 1e-12
+
+
+def test_the_gradient_through_the_compiled_start_is_exact(monkeypatch):
+    monkeypatch.setattr(compiled, "MIN_STEPS", 1000)
+    physics = _hard()
+    t, u = _drive(1000)
+
+    def gradient(segment):
+        physics.zero_grad()
+        simulate(physics, t, u, solver=RK4(substeps=2, segment=segment)).square().sum().backward()
+        return torch.cat([p.grad.reshape(-1) for p in physics.parameters() if p.grad is not None])
+
+    shooting = gradient(2)
+    assert compiled._FORMS[physics][1] is not None
+    assert _relative(shooting, gradient(10**6)) < 1e-6  # one segment: reverse mode through every RK4 stage
+
+
+def test_a_blow_up_is_still_reported_where_it_happens():
+    physics = Oscillator(zeta=0.1, omega0=1.0, learn=()) + CubicStiffness(-200.0)  # softening: escapes past x = 0.07
+    t, u = _drive()
+    u = 5 * u
+    with pytest.raises(SimulationError, match="blew up"):
+        simulate(physics, t, u, solver=RK4(substeps=1))
+
+
+@pytest.mark.parametrize("case", ["short record", "no compiler", "not RK4"])
+def test_what_is_not_compiled_is_left_to_the_engine(case, monkeypatch):
+    from torchpaml import TRBDF2
+
+    t, u = _drive(SAMPLES if case != "short record" else 100)
+    solver = TRBDF2(substeps=1) if case == "not RK4" else RK4(substeps=1)
+    if case == "no compiler":
+        monkeypatch.setattr(compiled, "compiler", lambda: None)
+    physics = _hard()
+    with torch.no_grad():
+        assert compiled.sequential_states(physics, t, u, physics.initial_state(2), solver, "foh") is None
