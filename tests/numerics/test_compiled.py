@@ -12,7 +12,7 @@ Tolerances:
 import pytest
 import torch
 
-from torchpaml import (RK4, AbstractPhysics, CoulombFriction, CubicStiffness, Hysteresis, Oscillator,
+from torchpaml import (RK4, AbstractPhysics, CoulombFriction, CubicStiffness, Hysteresis, InputLag, Oscillator,
                        PhysicalParameter, Positive, SimulationError, register_parameters, simulate, state_vector)
 from torchpaml._simulate import compiled
 
@@ -30,6 +30,11 @@ def _drive(samples: int = SAMPLES, jitter: bool = False):
 
 def _hard():
     return Oscillator(zeta=0.1, omega0=1.0, gain=1.0, learn=("zeta", "omega0")) + CubicStiffness(200.0)
+
+
+def _form(physics):
+    """The compiled form kept for ``physics``' current structure."""
+    return compiled._FORMS[physics][compiled._signature(physics)]
 
 
 def _relative(a, b):
@@ -57,8 +62,9 @@ class Power(AbstractPhysics):
 
 
 @pytest.mark.parametrize("physics", [_hard(), Oscillator(zeta=0.2, omega0=1.0) + Hysteresis(),
-                                     Oscillator(zeta=0.2, omega0=1.0) + CoulombFriction(0.02)],
-                         ids=["cubic", "hysteresis", "friction"])
+                                     Oscillator(zeta=0.2, omega0=1.0) + CoulombFriction(0.02),
+                                     Oscillator(zeta=0.2, omega0=1.0) + InputLag(0.5)],
+                         ids=["cubic", "hysteresis", "friction", "input lag"])
 @pytest.mark.parametrize("hold", ["foh", "zoh"])
 def test_the_compiled_rk4_is_the_engines_rk4(physics, hold):
     t, u = _drive(jitter=hold == "zoh")
@@ -77,13 +83,13 @@ def test_new_parameters_need_no_new_compile_and_a_new_structure_gets_one():
     x0 = physics.initial_state(2)
     with torch.no_grad():
         first = compiled.sequential_states(physics, t, u, x0, RK4(substeps=1), "foh")
-        form = compiled._FORMS[physics][1]
+        form = _form(physics)
         physics.parametrizations.k.original.add_(0.5)
         stiffer = compiled.sequential_states(physics, t, u, x0, RK4(substeps=1), "foh")
-        assert compiled._FORMS[physics][1] is form
+        assert _form(physics) is form
         physics.power = 5
         quintic = compiled.sequential_states(physics, t, u, x0, RK4(substeps=1), "foh")
-        assert compiled._FORMS[physics][1] is not form
+        assert _form(physics) is not form
         reference = simulate(physics, t[:300], u[:, :300], x0, solver=RK4(substeps=1, segment=300))
     assert _relative(first, stiffer) > 1e-3
     assert _relative(physics.output(quintic[:, :300], u[:, :300]), reference) < 1e-12
@@ -100,7 +106,7 @@ def test_the_gradient_through_the_compiled_start_is_exact(monkeypatch):
         return torch.cat([p.grad.reshape(-1) for p in physics.parameters() if p.grad is not None])
 
     shooting = gradient(2)
-    assert compiled._FORMS[physics][1] is not None
+    assert _form(physics) is not None
     assert _relative(shooting, gradient(10**6)) < 1e-6  # one segment: reverse mode through every RK4 stage
 
 
@@ -123,3 +129,21 @@ def test_what_is_not_compiled_is_left_to_the_engine(case, monkeypatch):
     physics = _hard()
     with torch.no_grad():
         assert compiled.sequential_states(physics, t, u, physics.initial_state(2), solver, "foh") is None
+
+
+def test_forward_mode_and_functional_call_leave_the_module_compiled(monkeypatch):
+    monkeypatch.setattr(compiled, "MIN_STEPS", 1000)
+    physics = _hard()
+    t, u = _drive(1000)
+    key = "base.parametrizations.zeta.original"
+    raw = physics.base.parametrizations.zeta.original.detach().clone()
+
+    def output(r):
+        return torch.func.functional_call(physics, {key: r}, (t, u[:1]), {"solver": RK4(substeps=2)})
+
+    _, tangent = torch.func.jvp(output, (raw,), (torch.ones_like(raw),))
+    cotangent = torch.randn(u[:1].shape, generator=torch.Generator().manual_seed(2), dtype=torch.float64)
+    (reverse,) = torch.autograd.grad((output(raw.requires_grad_()) * cotangent).sum(), raw)
+    assert float((tangent * cotangent).sum()) == pytest.approx(float(reverse), rel=1e-9)
+    with torch.no_grad():
+        assert compiled.sequential_states(physics, t, u, physics.initial_state(2), RK4(substeps=1), "foh") is not None

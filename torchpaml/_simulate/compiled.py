@@ -12,8 +12,9 @@ fit's new parameters need no new compile. The expressions are printed as C after
 elimination, and RK4 runs sample after sample for each row: the stage times, the inputs of the hold and the step
 coefficients of :func:`~torchpaml._simulate.steps.rk4_sweep`, so the two agree to rounding (measured: 5e-15
 relative on the hard oscillator). The library is compiled once per machine
-(:func:`~torchpaml._symbolic.compiler.cached_library`), and the compiled form is kept per physics object while its
-structure (its modules, their plain attributes, its tensors' names and shapes) stays the same.
+(:func:`~torchpaml._symbolic.compiler.cached_library`), and the compiled form is kept per physics object and
+structure (its modules, their plain attributes, its tensors' names, types and shapes): change one, and the next
+call compiles again.
 
 **Where it is used.** :func:`~torchpaml._simulate.shooting.simulate_shooting` returns these states where no
 gradient is recorded, and otherwise starts Newton from them: they are the solution, so its first sweep converges
@@ -22,7 +23,7 @@ returns ``None`` and the engine goes on as before: a method other than RK4 (its 
 that ``torch.export`` or the operation table cannot take, more than :data:`MAX_PARAMETERS` parameter elements (a
 neural force: its closed form is no faster than its tensors), no C compiler, fewer than :data:`MIN_STEPS` steps
 (tracing and compiling cost about 0.2 s per model structure), states that do not stay finite (the engine then
-reports where the simulation blew up), or a computation that forward-mode AD or ``torch.func`` traces.
+reports where the simulation blew up), or a ``torch.func`` transform running (``jvp``, ``vmap``).
 """
 
 from __future__ import annotations
@@ -146,13 +147,14 @@ def _source(rates: list, n: int, m: int) -> str:
 
 def _signature(physics: Dynamics) -> tuple:
     """What a compiled form depends on besides the parameters' values: each module's class and plain attributes, and
-    its tensors' names and shapes."""
+    its tensors' names, types and shapes (``functional_call`` puts plain tensors in the parameters' place, which
+    ``torch.export`` refuses: that structure is then left to the engine, and the module's own is still compiled)."""
     plain = (bool, int, float, str, tuple, type(None))
     return tuple((name, type(module).__qualname__,
                   tuple(sorted((k, repr(v)) for k, v in vars(module).items()
                                if not k.startswith("_") and k != "training" and isinstance(v, plain))),
-                  tuple((k, tuple(v.shape)) for k, v in (*module._parameters.items(), *module._buffers.items())
-                        if v is not None))
+                  tuple((k, type(v).__name__, tuple(v.shape))
+                        for k, v in (*module._parameters.items(), *module._buffers.items()) if v is not None))
                  for name, module in physics.named_modules())
 
 
@@ -162,17 +164,22 @@ _FORMS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def _compiled(physics: Dynamics) -> _Compiled | None:
     """The compiled form of ``physics`` (made once per structure), ``None`` where it cannot be compiled."""
     signature = _signature(physics)
-    kept = _FORMS.get(physics)
-    if kept is not None and kept[0] == signature:
-        return kept[1]
+    kept = _FORMS.setdefault(physics, {})
+    if signature in kept:
+        return kept[signature]
     form = None
     if compiler() is not None and sum(p.numel() for p in physics.parameters()) <= MAX_PARAMETERS:
         try:
             form = _Compiled(physics)
         except ConfigurationError:  # not traceable, an operation the table lacks: the shooting engine simulates it
             form = None
-    _FORMS[physics] = (signature, form)
+    kept[signature] = form
     return form
+
+
+def _transformed() -> bool:
+    """Whether a ``torch.func`` transform (``jvp``, ``vmap``, ``grad``) is running: its tensors cannot leave torch."""
+    return torch._C._functorch.peek_interpreter_stack() is not None
 
 
 def sequential_states(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: Method,
@@ -181,7 +188,7 @@ def sequential_states(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: t
     n_input) on ``t`` (time,) by RK4 at ``solver.substeps`` in C, detached; ``None`` where the module docstring's
     conditions leave it to the shooting engine."""
     steps = u.shape[0] * (len(t) - 1) * solver.substeps
-    if not solver.compiles or steps < MIN_STEPS or torch._C._functorch.is_functorch_wrapped_tensor(u):
+    if not solver.compiles or steps < MIN_STEPS or _transformed():
         return None
     form = _compiled(physics)
     if form is None:

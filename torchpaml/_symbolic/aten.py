@@ -119,7 +119,7 @@ OPS: dict = {
     aten.lt.Tensor: _binary(sympy.StrictLessThan), aten.lt.Scalar: _binary(sympy.StrictLessThan),
     aten.ge.Tensor: _binary(sympy.GreaterThan), aten.ge.Scalar: _binary(sympy.GreaterThan),
     aten.le.Tensor: _binary(sympy.LessThan), aten.le.Scalar: _binary(sympy.LessThan),
-    aten.where.self: _where,
+    aten.where.self: _where, aten.where.ScalarOther: _where, aten.where.ScalarSelf: _where, aten.where.Scalar: _where,
     aten.select.int: lambda a, dim, index: np.take(a, index, axis=dim),
     aten.slice.Tensor: _slice,
     aten.stack.default: lambda items, dim=0: np.stack([_array(i) for i in items], axis=dim),
