@@ -35,7 +35,14 @@ CASES = {
     "hysteresis": (2.0, 1.0, {"gamma": 1.0, "delta": 0.5}),
     "dynamic_friction": (5.0, 1.0, {"zc": 0.1, "vs": 1.0}),
     "input_lag": (0.3, 1.0),
+    "sensor_lag": (0.3, 1.0),
+    "magnitude_sensor": (0.3, 1.0),
+    "quadratic_sensor": (0.3, 1.0),
+    "quadratic_input": (0.3, 1.0),
 }
+#: effect -> the library effect that gives the same output on the linear oscillator: linear filters commute, so an
+#: actuator lag and a sensor lag are one model there, and the ranking names the first in the library's order.
+EQUIVALENT = {"sensor_lag": "input_lag"}
 #: how many standard errors a refitted parameter may lie from the truth (a two-sided 99.99 % normal quantile)
 REACH = 4.0
 
@@ -74,16 +81,17 @@ def test_the_hidden_effect_ranks_first_and_closes_the_gap(name):
     # the true effect's first-order score is first or second in every case, so two refits decide (and keep CI short)
     ranking = rank_missing_effects(physics(), default_effects(), train, validation, shortlist=2)
     best = ranking.entries[0]
-    assert best.effect == name, ranking_table(ranking)
+    assert best.effect == EQUIVALENT.get(name, name), ranking_table(ranking)
     assert ranking.recommended is best
     assert ranking.baseline.nrmse_validation > 2 * floor  # the effect was visible in the first place
     assert best.refit.nrmse_validation < 1.5 * floor, ranking_table(ranking)
-    effect = EFFECTS[name]()
-    fitted = best.refit.parameters[f"{name}.{effect.strength}"]
+    found = best.effect
+    effect = EFFECTS[found]()
+    fitted = best.refit.parameters[f"{found}.{effect.strength}"]
     assert fitted == pytest.approx(strength, rel=0.1)  # the strength in physical units, from noisy data
     if effect.own_states:  # and every learned parameter of an effect with memory, within reach of its std
         learned = best.refit.uncertainty
-        true = system.physical_parameters()
+        true = {key.replace(f"{name}.", f"{found}."): value for key, value in system.physical_parameters().items()}
         far = {n: (best.refit.parameters[n], true[n], learned[n]) for n in learned
                if abs(best.refit.parameters[n] - true[n]) > REACH * learned[n]}
         assert not far, far

@@ -7,7 +7,7 @@ with the rates $R_e$ on named state equations, the forces $F_e$ on the velocity 
 freedom (:attr:`~torchpaml.AbstractPhysics.degrees_of_freedom`; on second-order physics
 $\ddot x = a_{\text{base}} + \sum_e F_e$), the input maps $m_{\text{in}}$ and output maps $m_{\text{out}}$ of the effects applied in the
 order they were added. An effect with its own states $z_e$ (:attr:`~torchpaml.AbstractEffect.own_states`:
-hysteresis, dynamic friction, a lagged input) appends them to the state vector, $\dot z_e = g_e(x, z_e, u)$,
+hysteresis, dynamic friction, a lagged input or sensor) appends them to the state vector, $\dot z_e = g_e(x, z_e, u)$,
 after the base's states, named ``effect.state``; its force, rate and maps then read $z_e$ too. A state of the
 base's states alone, wherever one is passed, is completed with the effects' declared initial values
 (:func:`~torchpaml.complete_state`). Parameters keep their names: the base's (``zeta``, ``omega0``, ...) and each
@@ -141,8 +141,8 @@ class ComposedModel(AbstractPhysics):
     def output(self, x, u):
         x, own = self._own(x)
         y = self.base.output(x, self._mapped(u, own)).movedim(0, -1)  # batch last: parameters batched as (rows,)
-        for effect in self.effects.values():
-            y = effect.output_map(y)
+        for name, effect in self.effects.items():
+            y = effect.output_map(y, *(z.movedim(0, -1) for z in own[name]))
         return y.movedim(-1, 0)
 
     def initial_state(self, batch):

@@ -52,7 +52,8 @@ class AbstractEffect(Rebuildable, nn.Module):
     **Effects with memory** declare :attr:`own_states` (:class:`EffectState`) and give their dynamics in
     :meth:`state_rate`; the composed model integrates them with the physics. Their hooks then receive the
     effect's states ``z`` (batch, k) as one more, last argument: ``force(physics, x, v, u, z)``,
-    ``rate(physics, x, u, z)``, ``input_map(u, z)``. At strength 0 the states may evolve but must not act.
+    ``rate(physics, x, u, z)``, ``input_map(u, z)``, ``output_map(y, z)``. At strength 0 the states may evolve but
+    must not act.
     """
 
     name: str = ""
@@ -175,7 +176,7 @@ class AbstractEffect(Rebuildable, nn.Module):
     def input_map(self, u: torch.Tensor, z: torch.Tensor | None = None) -> torch.Tensor:
         return u
 
-    def output_map(self, y: torch.Tensor) -> torch.Tensor:
+    def output_map(self, y: torch.Tensor, z: torch.Tensor | None = None) -> torch.Tensor:
         return y
 
     @staticmethod

@@ -28,6 +28,24 @@ __all__ = ["Ranker", "rank_missing_effects"]
 
 log = logging.getLogger("torchpaml._diagnostics.ranking.steps")
 
+#: Refit criteria within this much of each other are the same evidence (a likelihood ratio within 1 %).
+TIE = 0.01
+
+
+def by_criterion(entries: list) -> list:
+    """The refitted ``entries`` by their criterion, best first; those within :data:`TIE` of the best of their group
+    in the order of ``entries`` (the candidates'). Equivalent candidates (an actuator and a sensor lag on linear
+    physics give the same output) thus rank in the library's order, not by the last digits of two optimisations,
+    and the same records give the same ranking on every machine."""
+    place = {id(e): i for i, e in enumerate(entries)}
+    ranked, group = [], []
+    for entry in sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion):
+        if group and entry.refit.criterion > group[0].refit.criterion + TIE:
+            ranked += sorted(group, key=lambda e: place[id(e)])
+            group = []
+        group.append(entry)
+    return ranked + sorted(group, key=lambda e: place[id(e)])
+
 
 @dataclass(frozen=True)
 class Ranker:
@@ -108,7 +126,7 @@ class Ranker:
         refits = Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, self.max_nfev, limits)
         refit_shortlist([e for e in by_score if e.effect in extended_models], extended_models, self.shortlist, rule,
                         validation, base, refits)
-        refitted = sorted((e for e in entries if e.refit is not None), key=lambda e: e.refit.criterion)
+        refitted = by_criterion(entries)
         if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
             best = refitted[0]
             free_shape(best, train, validation, rule, self.max_nfev, initial_state, refits.ftol,
