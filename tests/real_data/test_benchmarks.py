@@ -85,8 +85,8 @@ def tanks_discovery(threads: int) -> tuple[dict, float]:
 @pytest.mark.experiment
 def test_cascaded_tanks_discovery_finds_what_the_linear_tanks_miss_the_same_on_one_and_two_threads():
     """The linear fit sits at a double pole that the records do not determine, so the search goes by refits, one
-    term at a time. Measured: a constant and u**3 on the upper tank, u*upper**2 on the lower, 0.522 V on test (the
-    linear physics 1.156 V); the same closed form and figures to 4 significant digits on one thread and on two."""
+    term at a time. Measured: a constant on the lower tank and upper**3 on the upper, 0.632 V on test (the linear
+    physics 1.156 V); the same closed form and figures to 4 significant digits on one thread and on two."""
     one, rmse_one = tanks_discovery(1)
     assert one["recommended"] and one["terms"], one
     assert all(0 < t["std"] < abs(t["coefficient"]) for t in one["terms"]), one["terms"]
