@@ -7,7 +7,7 @@ Rungs: the oscillator, the pendulum and an oscillator with cubic stiffness, each
 already on the rung (the demo's second rung). Records: the rung's own system with a hidden cubic damping
 (-0.3 v^3: ``experiments/discovery/forces.py``, a force outside the library, so that every candidate has a residual to chase), pseudorandom training and
 multisine validation, dt = 0.05 s, 2 % noise. For each rung: its fit (the baseline, timed in the same run), then each
-of the twelve candidates refitted alone (``rank_missing_effects`` with that candidate, the first-order gate opened
+of the library candidates refitted alone (``rank_missing_effects`` with that candidate, the first-order gate opened
 so that the refit runs, within the default budget); the time is that of the refit (``refit_effect``), the rung's fit
 and the scoring left out. A refit that the gate would not run is marked; one stopped by its budget is reported
 undecided with its seconds. Last, discovery alone on a physics whose first-order form does
