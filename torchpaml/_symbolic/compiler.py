@@ -26,11 +26,13 @@ def compiler() -> str | None:
 def compile_library(source: str, library: Path, purpose: str, include: Path | None = None) -> Path:
     """Compile ``source`` (C99) into the shared library ``library`` (``cc`` with :data:`FLAGS`, ``include`` on the
     header path); ``purpose`` (e.g. "writing an FMU") names what needs it in the one-line refusals: no compiler on
-    PATH, or a source that does not compile. The library appears whole or not at all (built aside, then moved)."""
+    PATH, or a source that does not compile. The library appears whole or not at all (built in a folder beside it, then
+    renamed: processes that compile the same model at once each load a whole file)."""
     cc = compiler()
     if cc is None:
         raise ConfigurationError(f"{purpose} compiles C, and no C compiler (cc, gcc) is on PATH; install one")
-    with tempfile.TemporaryDirectory() as folder:
+    library.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=library.parent) as folder:  # beside the library: the rename is atomic
         code, built = Path(folder) / "source.c", Path(folder) / library.name
         code.write_text(source)
         flags = [] if include is None else [f"-I{include}"]
@@ -38,8 +40,7 @@ def compile_library(source: str, library: Path, purpose: str, include: Path | No
         if done.returncode != 0:
             first = (done.stderr.strip().splitlines() or ["no message"])[0]
             raise ConfigurationError(f"{purpose}: the C source did not compile ({first}); report it with the model")
-        library.parent.mkdir(parents=True, exist_ok=True)
-        shutil.move(str(built), library)
+        os.replace(built, library)
     return library
 
 
