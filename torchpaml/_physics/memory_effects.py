@@ -35,6 +35,12 @@ def _output_scale(records: list) -> float:
     return scale if scale > 0 else 1.0
 
 
+def sample_interval(records: list) -> float | None:
+    """The shortest median sampling interval over ``records`` (where a lag is probed), ``None`` without one."""
+    steps = [float(torch.median(torch.diff(r.t))) for r in records if len(r.t) > 1]
+    return min(steps) if steps else None
+
+
 def _largest_step(records: list) -> float:
     """The largest change of the measured output over one sample, over ``records`` (0 for records of one sample)."""
     return max((float(torch.diff(r.y, dim=0).abs().max()) for r in records if len(r.t) > 1), default=0.0)
@@ -191,8 +197,7 @@ class InputLag(AbstractEffect):
         return super().applies_to(physics)
 
     def probe(self, records):
-        steps = [float(torch.median(torch.diff(r.t))) for r in records if len(r.t) > 1]
-        return min(steps) if steps else None
+        return sample_interval(records)
 
     def input_map(self, u, z):
         return torch.where(self.tau > 0, z, u)

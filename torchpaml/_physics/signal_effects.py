@@ -26,6 +26,7 @@ import torch
 from torchpaml._parameters import PhysicalParameter, Real, register_parameters
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effect import AbstractEffect, EffectState
+from torchpaml._physics.memory_effects import sample_interval
 
 __all__ = ["MagnitudeSensor", "QuadraticInput", "QuadraticSensor", "SensorLag"]
 
@@ -34,11 +35,6 @@ def _one_output(name: str, physics: AbstractPhysics) -> str | None:
     if physics.output_dim != 1:
         return f"{name} acts on a single output; {physics.display_name} has {physics.output_dim}"
     return None
-
-
-def _sample_interval(records: list) -> float | None:
-    steps = [float(torch.median(torch.diff(r.t))) for r in records if len(r.t) > 1]
-    return min(steps) if steps else None
 
 
 class SensorLag(AbstractEffect):
@@ -63,7 +59,7 @@ class SensorLag(AbstractEffect):
         return _one_output(self.name, physics) or super().applies_to(physics)
 
     def probe(self, records):
-        return _sample_interval(records)
+        return sample_interval(records)
 
     def output_map(self, y, z=None):
         return torch.where(self.tau > 0, z, y)
