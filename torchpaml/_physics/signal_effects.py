@@ -7,6 +7,7 @@ sensor_lag           $y = y_\ell$, $\dot y_\ell = (h(x, u) - y_\ell)/\tau$ (a fi
 magnitude_sensor     $y = h + m\,(|h| - h)$: at $m = 1$ the sensor reads only the magnitude   m (0)
 quadratic_sensor     $y = h + a\,h^2$: a calibration curve bent to one side                    a (0)
 quadratic_input      $\tilde u = u + b\,u^2$: an actuator whose gain differs with the sign of u   b (0)
+extra_mode           $y = h + q$, $\ddot q = g\,u - 2\zeta_m\omega_m\dot q - \omega_m^2 q$: one more linear mode   g (0), omega_m, zeta_m
 ==================== ======================================================================== ===================
 
 Each is off at zero strength, so the ranking scores it like any effect (:func:`~torchpaml.rank_missing_effects`).
@@ -23,12 +24,12 @@ import math
 
 import torch
 
-from torchpaml._parameters import PhysicalParameter, Real, register_parameters
+from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effect import AbstractEffect, EffectState
 from torchpaml._physics.memory_effects import sample_interval
 
-__all__ = ["MagnitudeSensor", "QuadraticInput", "QuadraticSensor", "SensorLag"]
+__all__ = ["ExtraMode", "MagnitudeSensor", "QuadraticInput", "QuadraticSensor", "SensorLag"]
 
 
 def _one_output(name: str, physics: AbstractPhysics) -> str | None:
@@ -120,3 +121,58 @@ class QuadraticInput(AbstractEffect):
 
     def input_map(self, u, z=None):
         return u + self.b * u * u
+
+
+#: The extra mode's damping ratio at its starts: broad enough that a start near the mode's frequency sees it.
+MODE_DAMPING = 0.3
+
+
+class ExtraMode(AbstractEffect):
+    r"""One more linear mode of the device, driven by the input and seen at the output (a structural resonance, a
+    second mass the physics leaves out):
+
+    $$ \ddot q = g\,u - 2\zeta_m\omega_m\dot q - \omega_m^2 q, \qquad y = h(x, u) + q. $$
+
+    ``g`` ([y]/([u] s^2)) is the strength; ``omega_m`` (rad/s) and ``zeta_m`` are learned with it. Its frequency is
+    not known in advance: the ranking screens starts spread over the frequencies the records resolve
+    (:meth:`starts`). For physics with one input and one output. States ``q`` and ``q_dot``, starting at rest.
+    """
+
+    name = "extra_mode"
+    equation = "y = h + q, q'' = g*u - 2*zeta_m*omega_m*q' - omega_m^2*q"
+    own_states = (EffectState("q", "[y]", 0.0, "the mode's deflection at the output"),
+                  EffectState("q_dot", "[y]/s", 0.0, "its rate"))
+
+    def __init__(self, g: float = 0.0, omega_m: float = 1.0, zeta_m: float = MODE_DAMPING, *,
+                 learn=("g", "omega_m", "zeta_m")):
+        super().__init__()
+        register_parameters(self, [
+            PhysicalParameter("g", g, "[y]/([u] s^2)", Real(), "the mode's input gain"),
+            PhysicalParameter("omega_m", omega_m, "rad/s", Positive(), "the mode's natural frequency"),
+            PhysicalParameter("zeta_m", zeta_m, "-", Positive(), "the mode's damping ratio"),
+        ], learn)
+
+    def applies_to(self, physics: AbstractPhysics):
+        if physics.input_dim != 1:
+            return f"{self.name} is driven by a single input; {physics.display_name} has {physics.input_dim}"
+        return _one_output(self.name, physics) or super().applies_to(physics)
+
+    def starts(self, records):
+        """``omega_m`` at five frequencies spaced evenly in log between ten periods per record and a quarter of the
+        Nyquist frequency, each at ``zeta_m`` = :data:`MODE_DAMPING`."""
+        step = sample_interval(records)
+        if step is None:
+            return [{}]
+        length = max(float(r.t[-1] - r.t[0]) for r in records)
+        low, high = 20 * math.pi / length, math.pi / (4 * step)
+        if not low < high:
+            return [{}]
+        return [{"omega_m": low * (high / low) ** (i / 4), "zeta_m": MODE_DAMPING} for i in range(5)]
+
+    def output_map(self, y, z=None):
+        return y + z[..., :1, :]
+
+    def state_rate(self, physics: AbstractPhysics, x, z, u):
+        q, rate = z[..., 0], z[..., 1]
+        acceleration = self.g * u[..., 0] - 2 * self.zeta_m * self.omega_m * rate - self.omega_m**2 * q
+        return torch.stack([rate, acceleration], dim=-1)
