@@ -15,6 +15,9 @@ import torch
 from torchpaml import (RK4, AbstractPhysics, CoulombFriction, CubicStiffness, Hysteresis, InputLag, Oscillator,
                        PhysicalParameter, Positive, SimulationError, register_parameters, simulate, state_vector)
 from torchpaml._simulate import compiled
+from torchpaml._symbolic.compiler import compiler
+
+pytestmark = pytest.mark.skipif(compiler() is None, reason="the compiled RK4 needs a C compiler (cc, gcc) on PATH")
 
 SAMPLES = compiled.MIN_STEPS // 2 + 1  # two rows at one substep: just enough steps to compile
 
