@@ -118,8 +118,7 @@ class _Compiled:
 
     def parameters(self) -> np.ndarray:
         """The live values of the parameter array ``p_``, flattened in the compiled order."""
-        parts = [vars(module)["_parameters"].get(attribute, vars(module)["_buffers"].get(attribute))
-                 for module, attribute in self._sources]
+        parts = [getattr(module, attribute) for module, attribute in self._sources]
         if not parts:
             return np.zeros(1)
         return torch.cat([p.detach().reshape(-1).to(torch.float64) for p in parts]).numpy()
