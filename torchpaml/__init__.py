@@ -22,6 +22,8 @@ from torchpaml._diagnostics import (
     Adequacy,
     Diagnosis,
     Discoverer,
+    MismatchProbes,
+    Prober,
     Discovery,
     EffectEvidence,
     HybridScore,
@@ -110,7 +112,7 @@ __all__ = [
     "mismatch", "channel_mismatch", "fit_percent", "rmse",
     # the diagnosis and its stages
     "diagnose", "Diagnosis", "Ranker", "Discoverer", "SelectionRule", "Ranking", "EffectEvidence", "ModelScore",
-    "Ladder", "Discovery", "Adequacy", "HybridScore", "write_report",
+    "Ladder", "Discovery", "Adequacy", "HybridScore", "Prober", "MismatchProbes", "write_report",
     # Lightning
     "HybridSystem", "PhysicsFit", "ResidualFit", "JointFit", "RecordDataModule",
     # errors

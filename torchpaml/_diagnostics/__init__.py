@@ -6,6 +6,10 @@ from torchpaml._diagnostics.discovery.discoverer import Discoverer
 from torchpaml._diagnostics.discovery.result import Discovery
 from torchpaml._diagnostics.discovery.discoverer import discover_missing_force
 from torchpaml._diagnostics.diagnosis import Diagnosis, HybridScore, diagnose, hybrid_residual
+from torchpaml._diagnostics.mismatch.in_time import ErrorInTime, error_in_time
+from torchpaml._diagnostics.mismatch.places import PLACES, Place
+from torchpaml._diagnostics.mismatch.prober import Prober
+from torchpaml._diagnostics.mismatch.result import MismatchProbes, ProbeResult
 from torchpaml._diagnostics.analysis.harmonics import HarmonicFingerprint, harmonic_fingerprint
 from torchpaml._diagnostics.ranking.ladder import Ladder, model_ladder
 from torchpaml._diagnostics.ranking.ranker import Ranker
@@ -29,10 +33,16 @@ __all__ = [
     "Discoverer",
     "Discovery",
     "EffectEvidence",
+    "ErrorInTime",
     "HarmonicFingerprint",
     "HybridScore",
     "Ladder",
+    "MismatchProbes",
     "ModelScore",
+    "PLACES",
+    "Place",
+    "ProbeResult",
+    "Prober",
     "Ranker",
     "Ranking",
     "ResidualAnalysis",
@@ -42,6 +52,7 @@ __all__ = [
     "diagnose",
     "discover_missing_force",
     "error_by_amplitude",
+    "error_in_time",
     "harmonic_fingerprint",
     "hybrid_residual",
     "model_ladder",

@@ -23,7 +23,11 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    last rung (:func:`~torchpaml.discover_missing_force`: a neural rate in the ODE, then its
    closed form, ranked against the library's best remaining effect), so that it can find a second
    effect on top of a first. It is asked for, not automatic: it trains a
-   network through the simulator, so its cost grows with the record's length.
+   network through the simulator, so its cost grows with the record's length;
+5. the **probes of where the mismatch points** (:class:`~torchpaml.Prober`), where the last rung is not complete at
+   the noise level: one small, interpretable extension refitted at each place the missing physics may sit (the
+   actuator's and the sensor's dynamics, one more mode, the static maps of the output and of the input, a force, a
+   latent state, the initial state), each scored by its validation gain, the best named in the verdict.
 """
 
 from __future__ import annotations
@@ -43,6 +47,8 @@ from torchpaml._diagnostics.analysis.adequacy import Adequacy, assess_adequacy
 from torchpaml._diagnostics.analysis.channels import ChannelScore, channel_scores, shows_most
 from torchpaml._diagnostics.discovery.discoverer import Discoverer
 from torchpaml._diagnostics.discovery.result import Discovery
+from torchpaml._diagnostics.mismatch.prober import Prober
+from torchpaml._diagnostics.mismatch.result import MismatchProbes
 from torchpaml._diagnostics.ranking.ladder import Ladder, model_ladder
 from torchpaml._diagnostics.ranking.ranker import Ranker
 from torchpaml._diagnostics.results import ModelScore, Ranking
@@ -116,6 +122,8 @@ class Diagnosis:
     #: each output channel on validation (:mod:`~torchpaml._diagnostics.analysis.channels`); ``residuals``, ``by_input`` and
     #: ``by_output`` are the first channel's
     channels: list[ChannelScore] = field(default_factory=list)
+    #: where the last rung's mismatch points (:class:`~torchpaml.Prober`); ``None`` where the probes were not asked for
+    probes: MismatchProbes | None = None
 
     @property
     def shows_most(self) -> ChannelScore:
@@ -204,6 +212,8 @@ class Diagnosis:
             verdict += f" Discovered force: {self.discovery.text} ({judged}: {self.discovery.reason})."
         elif self.hybrids[-1].adequacy.inadequate:
             verdict += " To learn the form of what is missing, run the discovery (--discover, or discovery=Discoverer())."
+        if self.probes is not None and self.probes.rows:
+            verdict += " " + self.probes.describe()
         return verdict
 
 
@@ -316,6 +326,7 @@ def diagnose(
     initial_state: str | InitialState = Rest(),
     start_states: Sequence[torch.Tensor] | None = None,
     discovery: Discoverer | None = None,
+    prober: Prober | None = Prober(),
     alpha: float | None = None,
     budget: float | None = DEFAULT_BUDGET,
     **legacy,
@@ -334,6 +345,8 @@ def diagnose(
         discovery: also discover a force outside the library (module docstring, step 4) with these settings
             (:class:`~torchpaml.Discoverer`; ``Discoverer(library=TermLibrary(terms=["x**2*sign(v)"]))`` adds the
             user's own terms); default ``None``: no discovery.
+        prober: probe where the last rung's mismatch points (module docstring, step 5) with these settings
+            (:class:`~torchpaml.Prober`); ``None``: no probes.
         alpha: Chebyshev domain of the residual; default 1.05 max |u| over all records.
         budget: seconds for the whole diagnosis, counted from the call (default
             :data:`~torchpaml._budget.DEFAULT_BUDGET`, 600 s; ``None``: no limit), printed in its first progress
@@ -364,8 +377,12 @@ def diagnose(
                                 _distinct(base, ladder.final)))
     found = None if discovery is None else discovery.discover(ladder.rankings[-1], train, validation, deadline,
                                                               complete=hybrids[-1].adequacy.complete)
+    probes = None if prober is None else prober.probe(ladder.rankings[-1], train, validation, ranker=ranker,
+                                                      deadline=deadline, discovery=found,
+                                                      complete=hybrids[-1].adequacy.complete)
     first = channels[0]
-    return Diagnosis(ladder, first.residuals, first.by_input, first.by_output, hybrids, validation, found, channels)
+    return Diagnosis(ladder, first.residuals, first.by_input, first.by_output, hybrids, validation, found, channels,
+                     probes)
 
 
 def _stages(ranker: Ranker | None, discovery: Discoverer | None, legacy: dict) -> tuple[Ranker, Discoverer | None]:

@@ -6,10 +6,11 @@ name                 term                                                       
 hysteresis           $F = -k z$, $\dot z = v - \gamma |v| z - \delta\, v |z|$ (Bouc-Wen, n = 1)   k (0), gamma (1/rms y), delta (0)
 dynamic_friction     $F = -\sigma_0 (z + \tau_1 \dot z)$, $\dot z = v - |v| z / (z_c\, g(v))$ (LuGre)   sigma0 (0), zc (rms y / 10), ...
 input_lag            $\tilde u = u_\ell$, $\dot u_\ell = (u - u_\ell)/\tau$ (a first-order lag; $\tilde u = u$ at $\tau = 0$)   tau (0)
+latent_state         $\tilde u = u + g z$, $\dot z = \lambda (u - z)$ (a slow memory of the input beside its direct path)   g (0), lam
 ==================== ================================================================ ===========================
 
-The forces act on second-order (mechanical) physics, the lag on the input of any single-input physics.
-Each is off at zero strength (k, sigma0, tau = 0), where its state may evolve but does not act, so the
+The forces act on second-order (mechanical) physics, the lag and the latent state on the input of any single-input
+physics. Each is off at zero strength (k, sigma0, tau, g = 0), where its state may evolve but does not act, so the
 ranking scores it like any effect (:func:`~torchpaml.rank_missing_effects`). Where a
 default depends on the record's scale (a hysteretic displacement, a bristle deflection), the effect gives the
 ranking starts scaled to the measured output (:meth:`~torchpaml.AbstractEffect.starts`).
@@ -25,7 +26,7 @@ from torchpaml._physics.base import AbstractPhysics
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effect import AbstractEffect, EffectState
 
-__all__ = ["DynamicFriction", "Hysteresis", "InputLag"]
+__all__ = ["DynamicFriction", "Hysteresis", "InputLag", "LatentState"]
 
 
 def _output_scale(records: list) -> float:
@@ -205,3 +206,50 @@ class InputLag(AbstractEffect):
     def state_rate(self, physics: AbstractPhysics, x, z, u):
         on = self.tau > 0
         return torch.where(on, (u - z) / torch.where(on, self.tau, 1.0), 0.0)
+
+
+class LatentState(AbstractEffect):
+    r"""A latent state with a small learned rate: a slow memory of the input that acts beside its direct path (an
+    amplifier or a winding that heats, a reservoir that fills, a seal that creeps),
+
+    $$ \dot z = \lambda\,(u - z), \qquad \tilde u = u + g\,z . $$
+
+    At $g = 0$ the physics sees $u$ (the state evolves but does not act); at $g \ne 0$ the steady-state gain is
+    $1 + g$ while a change faster than $1/\lambda$ passes with gain 1. ``g`` (dimensionless) is the strength;
+    ``lam`` (1/s) is learned with it, from the slow starts of :meth:`starts`. It tells a memory from an actuator lag
+    (:class:`InputLag`, which removes the direct path). For physics with one input. State ``z`` in [u], starting at
+    0 (rest).
+    """
+
+    name = "latent_state"
+    equation = "u -> u + g*z, z' = lam*(u - z)"
+    own_states = (EffectState("z", "[u]", 0.0, "the input's slow memory"),)
+
+    def __init__(self, g: float = 0.0, lam: float = 1.0, *, learn=("g", "lam")):
+        super().__init__()
+        register_parameters(self, [
+            PhysicalParameter("g", g, "-", Real(), "the memory's gain"),
+            PhysicalParameter("lam", lam, "1/s", Positive(), "the memory's rate"),
+        ], learn)
+
+    def applies_to(self, physics: AbstractPhysics):
+        if physics.input_dim != 1:
+            return f"latent_state remembers a single input; {physics.display_name} has {physics.input_dim}"
+        return super().applies_to(physics)
+
+    def starts(self, records):
+        """``lam`` at three rates spaced evenly in log between five time constants per record and ten samples per
+        time constant: a memory slower than the dynamics the physics already has."""
+        step = sample_interval(records)
+        if step is None:
+            return [{}]
+        low, high = 5.0 / max(float(r.t[-1] - r.t[0]) for r in records), 0.1 / step
+        if not low < high:
+            return [{}]
+        return [{"lam": low * (high / low) ** (i / 2)} for i in range(3)]
+
+    def input_map(self, u, z):
+        return u + self.g * z
+
+    def state_rate(self, physics: AbstractPhysics, x, z, u):
+        return self.lam * (u - z)

@@ -233,6 +233,11 @@ class Refits:
         except SimulationError as error:  # the refit drove a rate of the effect beyond what RK4 integrates
             entry.failure = f"refit blew up: {error}; parameters {extended.physical_parameters()}"
             return
-        entry.refit = score_model(extended, refit, self.validation, self.rule, self.initial_state)
+        try:
+            entry.refit = score_model(extended, refit, self.validation, self.rule, self.initial_state)
+        except SimulationError as error:  # stable on the training records, unstable on a validation record
+            entry.failure = (f"the refitted model blows up on validation: {error}; parameters "
+                             f"{extended.physical_parameters()}")
+            return
         entry.improvement = self.baseline.criterion - entry.refit.criterion
         entry.unphysical = unphysical_values(entry.refit.rows())

@@ -1,0 +1,62 @@
+"""Where the mismatch points: devices whose missing part is known, diagnosed with candidates that miss it.
+
+Each case: the hidden-effect oscillator (``test_hidden_effects.py``: pseudorandom training and multisine validation
+records, 30 s at 20 Hz, 2 % noise) with one part the physics lacks, diagnosed with the library's friction and bias
+forces as the only candidates, so that the ladder cannot add it and the probes run. The probe table must name the
+right place first, and its library effect, added, must bring the validation mismatch within 1.5x the noise floor.
+The sensor lag sits behind a cubic spring (in the physics too): on the linear oscillator a sensor lag and an
+actuator lag give one output (``test_signal_effects.py``).
+"""
+
+import pytest
+import torch
+
+from torchpaml import EFFECTS, ConstantForce, CoulombFriction, CubicStiffness, QuadraticDamping, diagnose
+
+from test_hidden_effects import physics, records, truth
+
+pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
+
+#: the device's missing part -> (the place the probes must name, its strength, its other parameters). The sensor
+#: reads the magnitude for half its reading (m = 0.5): a sensor that reads only the magnitude (m = 1) leaves the fitted
+#: linear physics almost no gain, and no first-order direction starts a refit there (docs: the probes' limits).
+DEVICES = {
+    "sensor_lag": ("sensor dynamics", 0.3, {}),
+    "magnitude_sensor": ("output map", 0.5, {}),
+    "quadratic_input": ("input map", 0.3, {}),
+    "extra_mode": ("extra mode", 12.8, {"omega_m": 8.0, "zeta_m": 0.1}),
+    "latent_state": ("latent state", 0.5, {"lam": 0.3}),
+}
+
+
+def device(name):
+    strength, others = DEVICES[name][1:]
+    if name != "sensor_lag":
+        return truth(name, strength, others), physics(), 1.0
+    system = (truth() + CubicStiffness(2.0) + EFFECTS[name]()).assign(**{f"{name}.tau": strength})
+    return system, (physics() + CubicStiffness(2.0)).set_learnable("cubic_stiffness.k3"), 1.5
+
+
+@pytest.mark.parametrize("name", sorted(DEVICES))
+def test_the_probes_point_at_the_missing_part_and_its_effect_reaches_the_floor(name):
+    torch.manual_seed(0)
+    system, model, amplitude = device(name)
+    train, validation, floor = records(system, amplitude)
+    diagnosis = diagnose(model, [CoulombFriction(), QuadraticDamping(), ConstantForce()], train, validation)
+    probes = diagnosis.probes
+    table = "\n".join(f"{r.place}: {r.fitted} {r.gain} {r.note}" for r in probes.rows)
+    assert probes.validation > 2 * floor, table  # the part was missing in the first place
+    best = probes.best
+    assert best is probes.rows[0] and best.place == DEVICES[name][0] and best.fitted == name, table
+    assert best.validation < 1.5 * floor, table
+    assert best.score.parameters[f"{name}.{EFFECTS[name]().strength}"] == pytest.approx(DEVICES[name][1], rel=0.1)
+    assert f"Where the mismatch points: the {best.place} ({name}" in diagnosis.verdict
+
+
+def test_a_complete_model_is_not_probed():
+    """Data from the oscillator itself: its residual is noise, and the table says so instead of probing."""
+    torch.manual_seed(0)
+    train, validation, floor = records(truth(), 1.0)
+    probes = diagnose(physics(), [ConstantForce()], train, validation).probes
+    assert probes.rows == [] and "complete at this noise level" in probes.reason
+    assert 0.5 < probes.in_time.growth < 2  # the noise does not drift

@@ -1,0 +1,168 @@
+r"""The probe stage of a diagnosis: where the mismatch of the ladder's last rung points.
+
+Where no library candidate passes the rule and the model is not complete at the noise level, each place of
+:mod:`~torchpaml._diagnostics.mismatch.places` is probed on the last rung: of the library effects that extend the
+physics there (and apply to it), the ``shortlist`` ones with the highest first-order scores are refitted with the physics on the
+training records and scored on validation, as the ranking refits its shortlist (:class:`~torchpaml.Ranker`: its
+probe strength, iteration limit and refit budget); an effect the ranking refitted already is taken from its ranking.
+The force's place also takes the discovery's closed form where the discovery ran; the initial state's place scores
+the model with each validation record's initial state estimated, and says where in time the error sits
+(:mod:`~torchpaml._diagnostics.mismatch.in_time`). Each place's *validation gain* is the share by which its
+extension lowers the model's validation mismatch; the table names the place with the largest gain
+(:class:`~torchpaml._diagnostics.mismatch.result.MismatchProbes`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from torchpaml._budget import Budget
+from torchpaml._data import Record
+from torchpaml._diagnostics.discovery.result import Discovery
+from torchpaml._diagnostics.mismatch.in_time import error_in_time
+from torchpaml._diagnostics.mismatch.places import FORCE, INITIAL_STATE, PLACES, Place
+from torchpaml._diagnostics.mismatch.result import MismatchProbes, ProbeResult, ranked
+from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE
+from torchpaml._diagnostics.ranking.ranker import Ranker
+from torchpaml._diagnostics.ranking.refits import Refits
+from torchpaml._diagnostics.ranking.scoring import as_records, score_model
+from torchpaml._diagnostics.ranking.steps import applicable, placed, scored
+from torchpaml._diagnostics.results import EffectEvidence, Ranking
+from torchpaml._errors import ConfigurationError
+from torchpaml._fit.initial_state import Estimate
+from torchpaml._physics.effects import EFFECTS
+
+__all__ = ["Prober"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Prober:
+    """The settings of the probe stage (module docstring), and the probing itself (:meth:`probe`).
+
+    Attributes:
+        places: the places probed (:data:`~torchpaml._diagnostics.mismatch.places.PLACES`), each naming library
+            effects.
+        always: probe also where the last rung is complete at the noise level (by default the table then says so).
+    """
+
+    places: tuple[Place, ...] = PLACES
+    always: bool = False
+
+    def __post_init__(self):
+        unknown = sorted({name for place in self.places for name in place.effects} - set(EFFECTS))
+        if unknown:
+            raise ConfigurationError(f"the probes' places name effects outside the library: {unknown}; choose from "
+                                     f"{sorted(EFFECTS)}")
+
+    def probe(self, ranking: Ranking, train: Record | Sequence[Record], validation: Record | Sequence[Record], *,
+              ranker: Ranker = Ranker(), deadline: float | None = None, discovery: Discovery | None = None,
+              complete: bool = False) -> MismatchProbes:
+        """Probe every place on ``ranking``'s baseline (the ladder's last rung), fitted on ``train`` and scored on
+        ``validation``. ``ranker``: the ranking's settings, which the refits use; ``deadline``: a
+        ``time.perf_counter()`` time by which every refit ends (a refit over it is reported undecided);
+        ``discovery``: the discovery on that rung, whose closed form the force's place takes; ``complete``: the
+        rung's residual is noise (no probe runs unless :attr:`always`)."""
+        train, validation = as_records(train), as_records(validation)
+        score = ranking.baseline
+        model, fit = score.model, score.estimate
+        probes = MismatchProbes(model.display_name, score.nrmse_validation,
+                                in_time=error_in_time(validation, score.validation_outputs),
+                                min_gain=ranking.rule.min_share)
+        if complete and not self.always:
+            probes.reason = "its residual is noise that the orthogonal residual cannot reduce: complete at this noise level"
+            return probes
+        end = math.inf if deadline is None else deadline
+        if time.perf_counter() >= end:
+            probes.reason = "the diagnosis' budget was spent before the probes"
+            return probes
+        log.info("probing where the mismatch of %s points: %d places", model.display_name, len(self.places))
+        effects = {place.name: self._usable(place, model) for place in self.places}
+        refitted = {e.effect: e for e in ranking.entries if e.refit is not None}
+        fresh = [effect for usable in effects.values() for effect in usable if effect.name not in refitted]
+        entries, extended = scored(model, fresh, train, fit, ranker.probe) if fresh else ([], {})
+        new = {e.effect: e for e in entries}
+        template = Budget(model.display_name, ranker.refit_budget * (ranking.fit_seconds or 0.0),
+                          ranker.refit_budget * fit.evaluations, end)
+        refits = Refits(model.display_name, train, validation, fit, score, ranking.rule, ranking.initial_state,
+                        ranker.max_nfev, template)
+        rows = []
+        for place in self.places:
+            if place.name == INITIAL_STATE:
+                rows.append(self._initial_state(place, ranking, validation, probes))
+                continue
+            names = [effect.name for effect in effects[place.name]]
+            tried = [refitted[name] for name in names if name in refitted]
+            if not tried:
+                tried = _refit_best([new[name] for name in names if name in new], extended, refits, ranker.shortlist)
+            rows.append(_row(place, tried, score.nrmse_validation, discovery if place.name == FORCE else None,
+                             model.display_name))
+        probes.rows = ranked(rows, [place.name for place in self.places])
+        return probes
+
+    @staticmethod
+    def _usable(place: Place, model) -> list:
+        """The place's library effects that apply to ``model`` and are not in it, each force on every degree of
+        freedom it may act on."""
+        present = set(model.effect_names())
+        effects = [e for e in placed(model, [EFFECTS[name]() for name in place.effects]) if e.name not in present]
+        if not effects:
+            return []
+        try:
+            return applicable(model, effects)[0]
+        except ConfigurationError:  # none of them applies
+            return []
+
+    @staticmethod
+    def _initial_state(place: Place, ranking: Ranking, validation: list[Record], probes: MismatchProbes
+                       ) -> ProbeResult:
+        """The model scored with each validation record's initial state estimated, and where in time its error sits."""
+        where = probes.in_time.describe()
+        if isinstance(ranking.initial_state, Estimate):
+            return ProbeResult(place.name, place.extension, note=f"estimated already (--initial_state estimate); {where}")
+        score = ranking.baseline
+        estimated = score_model(score.model, score.estimate, validation, ranking.rule, Estimate())
+        return ProbeResult(place.name, place.extension, INITIAL_STATE, estimated.nrmse_validation,
+                           1.0 - estimated.nrmse_validation / score.nrmse_validation, where, estimated)
+
+
+def _refit_best(entries: list[EffectEvidence], extended: dict[str, tuple], refits: Refits, shortlist: int
+                ) -> list[EffectEvidence]:
+    """Refit the ``shortlist`` entries of ``entries`` with the highest first-order scores (of those whose probe acts
+    on enough samples to be scored); the entries refitted."""
+    scorable = [e for e in entries if e.effect in extended and e.acting >= MIN_ACTING_SHARE]
+    best = sorted(scorable, key=lambda e: -e.score)[:shortlist]
+    for entry in best:
+        entry.refit_reason = "refitted: among the best first-order scores of its place"
+        refits.run(entry, *extended[entry.effect])
+    return best
+
+
+def _row(place: Place, tried: list[EffectEvidence], validation: float, discovery: Discovery | None,
+         model: str) -> ProbeResult:
+    """The place's row: the best of its refitted effects (and of the discovery's closed form, for the force)."""
+    done = [e for e in tried if e.refit is not None]
+    options = [(e.refit, e.effect, _parameters(e)) for e in done]
+    if discovery is not None and discovery.discovered is not None:
+        options.append((discovery.discovered, discovery.text, "the discovery's closed form"))
+    if not options:
+        why = "; ".join(f"{e.effect}: {e.failure or e.refit_reason}" for e in tried) or \
+            f"no library effect of this place applies to {model}"
+        if place.name == FORCE and discovery is None:
+            why += "; the discovery (--discover) learns a force of any form"
+        return ProbeResult(place.name, place.extension, note=why)
+    best, name, note = min(options, key=lambda option: option[0].nrmse_validation)
+    return ProbeResult(place.name, place.extension, name, best.nrmse_validation,
+                       1.0 - best.nrmse_validation / validation, note, best)
+
+
+def _parameters(entry: EffectEvidence) -> str:
+    """The refitted effect's own parameters, ``name = value`` (with its first-order score)."""
+    own = ", ".join(f"{key.split('.', 1)[1]} = {value:.4g}" for key, value in entry.refit.parameters.items()
+                    if key.startswith(f"{entry.effect}."))
+    return f"{own} (first-order score {entry.score:.3g})"
