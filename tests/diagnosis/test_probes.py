@@ -60,3 +60,25 @@ def test_a_complete_model_is_not_probed():
     probes = diagnose(physics(), [ConstantForce()], train, validation).probes
     assert probes.rows == [] and "complete at this noise level" in probes.reason
     assert 0.5 < probes.in_time.growth < 2  # the noise does not drift
+
+
+def test_the_report_json_and_tensorboard_carry_the_table(tmp_path):
+    import json
+
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    from torchpaml import write_report
+
+    torch.manual_seed(0)
+    system, model, amplitude = device("latent_state")
+    train, validation, _ = records(system, amplitude)
+    diagnosis = diagnose(model, [ConstantForce()], train, validation)
+    write_report(diagnosis, tmp_path)
+    found = json.loads((tmp_path / "diagnosis.json").read_text())["where_the_mismatch_points"]
+    assert found["best"] == "latent state" and found["reason"] is None
+    assert [row["place"] for row in found["probes"]] == [row.place for row in diagnosis.probes.rows]
+    assert len(found["probes"]) == 8 and found["probes"][0]["fitted"] == "latent_state"
+    assert found["probes"][0]["gain"] == pytest.approx(1 - found["probes"][0]["nrmse_validation"] / found["nrmse_validation"])
+    assert "<h2>6. Where the mismatch points</h2>" in (tmp_path / "report.html").read_text()
+    events = EventAccumulator(str(tmp_path / "tensorboard")).Reload()
+    assert events.Scalars("probes/gain/latent_state")[0].value == pytest.approx(found["probes"][0]["gain"], rel=1e-6)

@@ -6,12 +6,12 @@ Layout of ``out``::
     discovery.json      discovery_to_dict(diagnosis.discovery), when the discovery ran
     discovered_effect.yaml   the discovered force as a config block (``candidates:`` of a --config), when one was found
     figures/NAME.png    compare, residual_analysis, error_by_amplitude, ranking, ladder (and discovery)
-    report.html         the story in one page, showing the figures
+    report.html         the story in one page, showing the figures (and the table "where the mismatch points")
     model.pt            the final model (torchpaml.load_model), where a model file can keep it
     hybrid.pt           the final rung with the Chebyshev residual on top, where the alarm recommends the hybrid
     tensorboard/        scalars ladder/nrmse_validation and ladder/nrmse_train (one point per rung),
                         ranking/score/EFFECT, discovery/nrmse_validation/{physics, library_best, neural,
-                        discovered}, the figures under diagnose/, the verdict, the final equation and the
+                        discovered}, probes/gain/PLACE, the figures under diagnose/, the verdict, the final equation and the
                         discovered expression as text
 """
 
@@ -90,6 +90,9 @@ def _tensorboard(diagnosis: Diagnosis, content: dict, figures: dict, folder: Pat
             if value is not None:
                 writer.add_scalar(f"discovery/nrmse_validation/{key}", value, 0)
         writer.add_text("discovery/expression", diagnosis.discovery.text, 0)
+    for row in diagnosis.probes.rows if diagnosis.probes is not None else []:
+        if row.gain is not None:
+            writer.add_scalar(f"probes/gain/{row.place.replace(' ', '_')}", row.gain, 0)
     writer.add_text("diagnose/verdict", diagnosis.verdict, 0)
     writer.add_text("diagnose/final_model", f"    {diagnosis.ladder.final.describe()}".replace("\n", "\n    "), 0)
     writer.close()
@@ -128,6 +131,20 @@ def _discovery_section(found: dict | None) -> str:
             f"library effect: {html.escape(str(found['library_best']))}.</p>" + _table(["model", "validation %"], rows))
 
 
+def _probes_section(found: dict | None) -> str:
+    if found is None:
+        return ""
+    if not found["probes"]:
+        return f"<h2>6. Where the mismatch points</h2><p>Not probed: {html.escape(found['reason'] or '')}.</p>"
+    best = "none of the places" if found["best"] is None else f"the <b>{html.escape(found['best'])}</b>"
+    rows = [[r["place"], r["extension"], r["fitted"] or "—", _pct(r["nrmse_validation"]),
+             "—" if r["gain"] is None else f"{100 * r['gain']:.1f}", r["note"]] for r in found["probes"]]
+    return (f"<h2>6. Where the mismatch points</h2><p>One small extension refitted at each place, scored on "
+            f"validation against {html.escape(found['model'])} ({_pct(found['nrmse_validation'])} %); it points at "
+            f"{best}. In time: {html.escape(found['in_time']['description'])}.</p>"
+            + _table(["place", "extension", "fitted", "validation %", "gain %", "what was fitted"], rows))
+
+
 def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
     base = content["baseline"]
     ranking = _table(
@@ -148,7 +165,7 @@ def _html(diagnosis: Diagnosis, content: dict, figures: list[str]) -> str:
                     [[h["model"], _pct(h["physics_nrmse_train"]), _pct(h["nrmse_train"]),
                       _pct(h["physics_nrmse_validation"]), _pct(h["nrmse_validation"]), h["message"]]
                      for h in content["hybrid"]])
-    discovery = _discovery_section(content["discovery"])
+    discovery = _discovery_section(content["discovery"]) + _probes_section(content["where_the_mismatch_points"])
     channels = content["where_it_fails"]["channels"]
     per_output = "" if len(channels) < 2 else (
         f"<p>Per output channel (validation): the missing effect shows most at output "

@@ -11,7 +11,8 @@ import math
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from torchpaml._diagnostics import AmplitudeBins, Diagnosis, Discovery, EffectEvidence, HybridScore, Ladder
+    from torchpaml._diagnostics import (AmplitudeBins, Diagnosis, Discovery, EffectEvidence, HybridScore, Ladder,
+                                        MismatchProbes)
 
 __all__ = ["SCHEMA_VERSION", "diagnosis_to_dict", "discovery_to_dict"]
 
@@ -111,6 +112,26 @@ def discovery_to_dict(discovery: Discovery) -> dict:
     }
 
 
+def probes_to_dict(probes: MismatchProbes | None) -> dict | None:
+    """The ``where_the_mismatch_points`` entry of ``diagnosis.json`` (``None`` where no probe was asked for)."""
+    if probes is None:
+        return None
+    best = probes.best
+    return {
+        "model": probes.model,
+        "nrmse_validation": probes.validation,
+        "best": None if best is None else best.place,
+        "min_gain": probes.min_gain,
+        "reason": probes.reason or None,
+        "in_time": None if probes.in_time is None else {"start_share": probes.in_time.start_share,
+                                                        "growth": probes.in_time.growth,
+                                                        "description": probes.in_time.describe()},
+        "probes": [{"place": r.place, "extension": r.extension, "fitted": r.fitted, "nrmse_validation": r.validation,
+                    "gain": r.gain, "note": r.note,
+                    "parameters": None if r.score is None else r.score.parameters} for r in probes.rows],
+    }
+
+
 def _bins(bins: AmplitudeBins) -> dict:
     return {"edges": bins.edges.tolist(), "counts": bins.counts.tolist(),
             "nrmse": [float(m) if math.isfinite(m) else None for m in bins.mismatch]}
@@ -147,5 +168,6 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict:
         },
         "hybrid": [hybrid_to_dict(h) for h in diagnosis.hybrids],
         "discovery": None if diagnosis.discovery is None else discovery_to_dict(diagnosis.discovery),
+        "where_the_mismatch_points": probes_to_dict(diagnosis.probes),
         "verdict": diagnosis.verdict,
     }

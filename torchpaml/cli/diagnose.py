@@ -110,6 +110,7 @@ def diagnose_command(
     discover: bool = False,
     discover_always: bool = False,
     terms: list[str] | None = None,
+    probes: bool = True,
     refit_budget: float = REFIT_BUDGET,
     fit_budget: float = RUNG_FIT_BUDGET,
     budget: float | None = DEFAULT_BUDGET,
@@ -144,6 +145,9 @@ def diagnose_command(
             discovery then says so and stops); implies ``discover``.
         terms: the discovery's own terms, sympy strings over the physics' variables (x, v, u for
             second-order physics, else its state names and u), e.g. ``x**2*sign(v)`` (repeat ``--term``).
+        probes: where the last rung is not complete at the noise level, probe where its mismatch points: one small
+            extension refitted at each place (:class:`~torchpaml.Prober`; ``where_the_mismatch_points`` in
+            ``diagnosis.json``); ``--probes false`` skips them.
         refit_budget: each refit may take this many times its rung's own fit, in seconds or in its fit's evaluations
             at the refit's own cost, whichever is longer; one over it stops and is reported undecided, and the ladder
             goes on.
@@ -157,33 +161,42 @@ def diagnose_command(
             steps, is printed on stderr with the seconds since the start).
     """
     from torchpaml._render.schema import diagnosis_to_dict
-    from torchpaml._render.tables import ranking_table
 
     if Path(out).is_file():
         raise ConfigurationError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
     check_options(shortlist, min_share, refit_budget, budget)
     model, chosen = resolve_models(physics, fix, effects, candidates, discover or discover_always)
-    ranker, discovery = _stages(SelectionRule(criterion, threshold, min_share), shortlist, refit_budget, fit_budget,
-                                terms, discover or discover_always, discover_always)
-    diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold, ranker=ranker,
-                                   initial_state=policy_named(initial_state), discovery=discovery, budget=budget)
-    path = Path(out) / "diagnosis.json"
-    print(ranking_table(diagnosis.ranking))
-    models = ", ".join(str(path.parent / name) for name in ("model.pt", "hybrid.pt") if (path.parent / name).exists())
-    print(f"\n{diagnosis.verdict}\n\nwrote {path}, {path.parent / 'report.html'}, figures/, tensorboard/"
-          + (f" and {models}" if models else ""))
+    stages = _stages(SelectionRule(criterion, threshold, min_share), shortlist, refit_budget, fit_budget, terms,
+                     discover or discover_always, discover_always, probes)
+    diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold,
+                                   initial_state=policy_named(initial_state), budget=budget, **stages)
+    _announce(diagnosis, Path(out))
     return diagnosis_to_dict(diagnosis)
 
 
+def _announce(diagnosis, out: Path) -> None:
+    """Print the first rung's ranking, the verdict and what was written into ``out``."""
+    from torchpaml._render.tables import ranking_table
+
+    path = out / "diagnosis.json"
+    print(ranking_table(diagnosis.ranking))
+    models = ", ".join(str(out / name) for name in ("model.pt", "hybrid.pt") if (out / name).exists())
+    print(f"\n{diagnosis.verdict}\n\nwrote {path}, {out / 'report.html'}, figures/, tensorboard/"
+          + (f" and {models}" if models else ""))
+
+
 def _stages(rule: SelectionRule, shortlist: int, refit_budget: float, fit_budget: float, terms: list[str] | None,
-            discover: bool, always: bool):
-    """The ranker and the discoverer (``None`` without ``discover``) of the command's options."""
+            discover: bool, always: bool, probes: bool) -> dict:
+    """The stages of the command's options, as :func:`~torchpaml.diagnose`'s keywords: the ranker, the discoverer
+    (``None`` without ``discover``) and the prober (``None`` without ``probes``)."""
     from torchpaml._diagnostics.discovery.discoverer import Discoverer
+    from torchpaml._diagnostics.mismatch.prober import Prober
     from torchpaml._diagnostics.ranking.ranker import Ranker
     from torchpaml._physics.terms import TermLibrary
 
     ranker = Ranker(rule=rule, shortlist=shortlist, refit_budget=refit_budget, fit_budget=fit_budget)
-    return ranker, Discoverer(library=TermLibrary(terms=tuple(terms or ())), always=always) if discover else None
+    discovery = Discoverer(library=TermLibrary(terms=tuple(terms or ())), always=always) if discover else None
+    return {"ranker": ranker, "discovery": discovery, "prober": Prober() if probes else None}
 
 
 def read_records(paths: str | Path | list, hold: str | None = None, physics: AbstractPhysics | None = None) -> list:
