@@ -225,6 +225,26 @@ def limits(results: Path) -> str | None:
     return "\n".join(lines) if len(lines) > 2 else None
 
 
+def probes(result: dict) -> str:
+    """What the diagnosis' probes tried on the benchmark's final grey box: each place's extension, its validation
+    gain, its test figure, and whether it is kept."""
+    unit = result["protocol"]["unit"]
+    splits = result["protocol"]["test"]
+    rows = result.get("probes") or []
+    if not rows:
+        return "No probe ran: the final grey box is complete at the noise level."
+    lines = ["| place | extension fitted | validation gain | " + " | ".join(splits) + " | kept |",
+             "|---|---|---|" + "---|" * len(splits) + "---|"]
+    for row in rows:
+        gain = "—" if row["validation_gain"] is None else f"{100 * row['validation_gain']:.1f} %"
+        figures = [("—" if row["rmse"] is None or row["rmse"].get(k) is None else f"{row['rmse'][k]:.3g} {unit}")
+                   for k in splits]
+        fitted = row["fitted"] or f"— ({row['note'][:90]})"
+        lines.append(f"| {row['place']} | {fitted} | {gain} | " + " | ".join(figures)
+                     + f" | {'yes' if row['kept'] else 'no'} |")
+    return "\n".join(lines)
+
+
 TABLES: dict[str, tuple[str, Callable]] = {
     "demo": ("demo/diagnosis.json", demo),
     "paper": ("paper/results.json", paper_table),
@@ -234,6 +254,10 @@ TABLES: dict[str, tuple[str, Callable]] = {
     "tanks": ("cascaded_tanks/cascaded_tanks.json", tanks),
     "boucwen": ("boucwen/boucwen.json", boucwen),
     "worst_case": ("bench_worst_case.json", worst_case),
+    "silverbox_probes": ("silverbox/silverbox.json", probes),
+    "tanks_probes": ("cascaded_tanks/cascaded_tanks.json", probes),
+    "emps_probes": ("emps/emps.json", probes),
+    "boucwen_probes": ("boucwen/boucwen.json", probes),
 }
 
 

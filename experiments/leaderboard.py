@@ -7,6 +7,7 @@
      "models": [{"model", "equation", "parameters", "uncertainty", "rmse": {<test split>: value}}],
      "hybrid": {"model", "accepted", "rmse": {<test split>: value or null}, "reason"},
      "goal": {"value", "split", "figure", "met", "limit": {"kind", "evidence", "explanation"}},
+     "probes": [{"place", "fitted", "validation_gain", "rmse": {<test split>: value}, "kept", "note"}],
      "seconds"}
 
 ``models`` goes from the linear physics to the final grey box; ``hybrid`` is the final model with the orthogonal
@@ -14,7 +15,9 @@ residual of the paper on top (:func:`torchpaml.analysis.hybrid_residual`, fitted
 where the final rung's alarm recommends it (neither inadequate nor complete physics), and an RMSE of ``null`` where a test input leaves the residual's domain.
 ``goal`` holds the benchmark's goal on its headline split (:func:`goal_entry`): the figure that counts (the hybrid's
 where its alarm accepts it, else the final grey box's), whether it meets the goal, and what limits it: one of
-:data:`LIMITS`, with the measured numbers that show it.
+:data:`LIMITS`, with the measured numbers that show it. ``probes`` holds the diagnosis' probes of where the final
+grey box's mismatch points (:func:`probe_entries`): each place's extension, its validation gain, its test figure, and
+whether it is kept (the place the probes name); empty where the final grey box is complete at the noise level.
 """
 
 from __future__ import annotations
@@ -26,11 +29,11 @@ from pathlib import Path
 
 import torch
 
-from torchpaml import Adequacy, DomainError, ModelScore, Record, simulate_record
+from torchpaml import Adequacy, DomainError, MismatchProbes, ModelScore, Record, simulate_record
 from torchpaml.analysis import hybrid_residual
 
-__all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "model_entry", "protocol",
-           "write_result"]
+__all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "model_entry", "probe_entries",
+           "protocol", "write_result"]
 
 #: The version of the leaderboard fields; a change of their meaning raises it.
 SCHEMA_VERSION = 1
@@ -95,6 +98,18 @@ def goal_entry(goal: float, split: str, models: list[dict], hybrid: dict, limit:
         models[-1]["rmse"][split]
     return {"value": goal, "split": split, "figure": figure, "met": figure <= goal,
             "limit": {"kind": limit, "evidence": evidence, "explanation": explanation}}
+
+
+def probe_entries(probes: MismatchProbes | None, test: Callable[[ModelScore], dict[str, float]]) -> list[dict]:
+    """The probes' rows (:class:`torchpaml.MismatchProbes`) as leaderboard rows, each extended model scored on the
+    test splits by ``test`` (the experiment's own metric); ``kept``: the place the probes name. The places were
+    chosen on the validation records; the test figures are reported, not chosen on."""
+    if probes is None:
+        return []
+    best = probes.best
+    return [{"place": row.place, "fitted": row.fitted, "validation_gain": row.gain,
+             "rmse": None if row.score is None else test(row.score), "kept": row is best, "note": row.note}
+            for row in probes.rows]
 
 
 def write_result(out: Path, result: dict, verdict: str) -> dict:

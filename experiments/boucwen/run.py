@@ -45,7 +45,7 @@ from torchpaml.report import diagnosis_to_dict
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
-from leaderboard import SCHEMA_VERSION, arguments, goal_entry, hybrid_entry, protocol, write_result  # noqa: E402
+from leaderboard import SCHEMA_VERSION, arguments, goal_entry, hybrid_entry, probe_entries, protocol, write_result  # noqa: E402
 from mass_spring_damper import frequency_response_start  # noqa: E402  (the user's physics, beside this script)
 
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "boucwen"
@@ -137,7 +137,9 @@ def main(argv: list[str] | None = None) -> dict:
                                    "RMSE of the displacement, free run from rest (test_multisine: its periodic steady "
                                    "state)", "m"),
               "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid, "hybrids": content["hybrid"],
-              "goal": goal(final, record, models, hybrid), "seconds": time.perf_counter() - start}
+              "goal": goal(final, record, models, hybrid),
+              "probes": probe_entries(diagnosis.probes, lambda score: test_rmse(score.model, tests, score.solver)),
+              "seconds": time.perf_counter() - start}
     return write_result(args.out, result, diagnosis.verdict)
 
 

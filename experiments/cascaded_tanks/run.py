@@ -37,7 +37,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
 
-from leaderboard import SCHEMA_VERSION, goal_entry, hybrid_entry, protocol, write_result  # noqa: E402
+from leaderboard import SCHEMA_VERSION, goal_entry, hybrid_entry, probe_entries, protocol, write_result  # noqa: E402
 from tanks import FREE_SPILL_RATE, MAX_SPILL_RATE, SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow  # noqa: E402
 
 from torchpaml.cli.progress import progress_lines  # noqa: E402
@@ -158,6 +158,8 @@ def main(argv: list[str] | None = None) -> dict:
                                    "V"),
               "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid, "hybrids": content["hybrid"],
               "free_spill": spill, "goal": goal(models, hybrid, spill, validation_rmse),
+              "probes": probe_entries(diagnosis.probes, lambda score: {"test": test_rmse(
+                  score.model, score.solver, score.train_states[0], test)}),
               "seconds": time.perf_counter() - start}
     if args.discover:
         found = diagnose(physics, [], train, validation, initial_state=Estimate(), discovery=Discoverer()).discovery

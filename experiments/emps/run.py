@@ -31,7 +31,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from leaderboard import SCHEMA_VERSION, arguments, goal_entry, hybrid_entry, model_entry, protocol, write_result  # noqa: E402
+from leaderboard import (SCHEMA_VERSION, arguments, goal_entry, hybrid_entry, model_entry, probe_entries, protocol,
+                         write_result)  # noqa: E402
 from rigid_body import RigidBody  # noqa: E402
 
 from torchpaml.cli.progress import progress_lines  # noqa: E402
@@ -131,7 +132,9 @@ def main(argv: list[str] | None = None) -> dict:
               "protocol": protocol("estimation (its last 20 % for validation)", ["test"], INIT_SAMPLES,
                                    "RMSE of the position, free run from vir", "mm"),
               "found": diagnosis.ladder.added, "friction": friction(final.parameters), "models": models,
-              "hybrid": hybrid, "goal": goal(final, [train, validation], models, hybrid)}
+              "hybrid": hybrid, "goal": goal(final, [train, validation], models, hybrid),
+              "probes": probe_entries(diagnosis.probes, lambda score: {"test": position_rmse_mm(test, simulate_record(
+                  score.model, test, test_start(score.model, score.solver, test), solver=score.solver)[0])})}
     result["seconds"] = time.perf_counter() - start
     return write_result(args.out, result, diagnosis.verdict)
 

@@ -45,7 +45,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
 
-from leaderboard import SCHEMA_VERSION, arguments, goal_entry, hybrid_entry, protocol, write_result  # noqa: E402
+from leaderboard import SCHEMA_VERSION, arguments, goal_entry, hybrid_entry, probe_entries, protocol, write_result  # noqa: E402
 
 from torchpaml.cli.progress import progress_lines  # noqa: E402
 from torchpaml import (
@@ -184,6 +184,7 @@ def main(argv: list[str] | None = None) -> dict:
               "noise_floor": dict(zip(("rms", "samples"), noise_floor(train), strict=True)),
               "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid, "hybrids": content["hybrid"]}
     result["goal"] = goal(result)
+    result["probes"] = probe_entries(diagnosis.probes, lambda score: test_scores(score.model, tests, score.solver)[0])
     result["seconds"] = time.perf_counter() - start
     if args.discover:  # discovery alone, on the linear physics: which force is missing, in closed form
         found = diagnose(frequency_response_start(train), [], train, validation, discovery=Discoverer()).discovery
