@@ -6,7 +6,7 @@ Data: the demo system (the oscillator with a hidden Coulomb friction), 20 Hz, 2 
 pseudorandom training record and a multisine validation record of each length. For each length: one
 fit of the physics alone (the baseline, linear: exact simulation; the faster of two, as the first call in a
 process also warms torch up) and the whole diagnosis with the
-library effects (seventeen) (:func:`~torchpaml.diagnose`: the ladder and the Chebyshev residual on top).
+library effects (nineteen) (:func:`~torchpaml.diagnose`: the ladder and the Chebyshev residual on top).
 Reported: seconds, microseconds per sample, the ratio to the fit, and the time per sample against the
 shortest record's (1.0 is linear in N). Two threads, the machine's.
 """

@@ -41,6 +41,7 @@ CASES = {
     "quadratic_input": (0.3, 1.0),
     "extra_mode": (12.8, 1.0, {"omega_m": 8.0, "zeta_m": 0.1}),
     "latent_state": (0.5, 1.0, {"lam": 0.3}),
+    "feedthrough": (0.3, 1.0),
 }
 #: effect -> the library effect that gives the same output on the linear oscillator: linear filters commute, so an
 #: actuator lag and a sensor lag are one model there, and the ranking names the first in the library's order.

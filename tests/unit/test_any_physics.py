@@ -36,7 +36,7 @@ def test_maps_apply_to_any_physics_and_forces_are_refused_with_the_reason():
 def test_the_default_candidates_that_apply_to_first_order_physics():
     applicable = {e.name for e in default_effects() if e.applies_to(tanks.TwoTanks()) is None}
     assert applicable == {"input_saturation", "output_saturation", "dead_zone", "input_lag", "sensor_lag",
-                          "magnitude_sensor", "quadratic_sensor", "quadratic_input", "extra_mode", "latent_state"}
+                          "magnitude_sensor", "quadratic_sensor", "quadratic_input", "extra_mode", "latent_state", "feedthrough"}
 
 
 def test_first_order_physics_with_the_default_candidates_runs_and_lists_the_skipped_ones():

@@ -37,7 +37,7 @@ def test_the_library_has_every_effect_the_issue_names():
         "cubic_stiffness", "quadratic_stiffness", "pendulum_restoring", "coulomb_friction", "quadratic_damping",
         "input_saturation", "output_saturation", "constant_force", "dead_zone", "hysteresis", "dynamic_friction",
         "input_lag", "sensor_lag", "magnitude_sensor", "quadratic_sensor", "quadratic_input",
-        "extra_mode", "latent_state",
+        "extra_mode", "latent_state", "feedthrough",
     }
 
 

@@ -142,7 +142,8 @@ class ComposedModel(AbstractPhysics):
         x, own = self._own(x)
         y = self.base.output(x, self._mapped(u, own)).movedim(0, -1)  # batch last: parameters batched as (rows,)
         for name, effect in self.effects.items():
-            y = effect.output_map(y, *(z.movedim(0, -1) for z in own[name]))
+            seen = {"u": u.movedim(0, -1)} if effect.reads_input else {}
+            y = effect.output_map(y, *(z.movedim(0, -1) for z in own[name]), **seen)
         return y.movedim(-1, 0)
 
     def initial_state(self, batch):

@@ -65,6 +65,9 @@ class AbstractEffect(Rebuildable, nn.Module):
     shape: tuple[str, ...] = ()
     #: the effect's own states, appended to the physics' state vector (module docstring of ``composed``)
     own_states: tuple[EffectState, ...] = ()
+    #: whether :meth:`output_map` also reads the measured input, as ``output_map(y, u=u)`` (a path from the input
+    #: straight to the sensor); ``u`` then comes in the layout of ``y``, (..., n_u, batch)
+    reads_input: bool = False
     #: the velocity state a force acts on (:meth:`on`); ``None``: the physics' only degree of freedom
     acts_on: str | None = None
 

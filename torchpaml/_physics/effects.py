@@ -53,7 +53,8 @@ from torchpaml._physics.base import AbstractPhysics
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effect import AbstractEffect, EffectState
 from torchpaml._physics.memory_effects import DynamicFriction, Hysteresis, InputLag, LatentState
-from torchpaml._physics.signal_effects import ExtraMode, MagnitudeSensor, QuadraticInput, QuadraticSensor, SensorLag
+from torchpaml._physics.signal_effects import (ExtraMode, Feedthrough, MagnitudeSensor, QuadraticInput, QuadraticSensor,
+                                               SensorLag)
 
 
 
@@ -203,7 +204,7 @@ EFFECTS: dict[str, type[AbstractEffect]] = {
     cls.name: cls
     for cls in (CubicStiffness, QuadraticStiffness, PendulumRestoring, CoulombFriction, QuadraticDamping,
                 InputSaturation, OutputSaturation, ConstantForce, DeadZone, Hysteresis, DynamicFriction, InputLag,
-                SensorLag, MagnitudeSensor, QuadraticSensor, QuadraticInput, ExtraMode, LatentState)
+                SensorLag, MagnitudeSensor, QuadraticSensor, QuadraticInput, Feedthrough, ExtraMode, LatentState)
 }
 #: The library effects' class names, as ``torchpaml`` exports them.
 EFFECT_CLASSES = sorted(cls.__name__ for cls in EFFECTS.values())

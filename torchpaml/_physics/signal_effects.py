@@ -7,11 +7,13 @@ sensor_lag           $y = y_\ell$, $\dot y_\ell = (h(x, u) - y_\ell)/\tau$ (a fi
 magnitude_sensor     $y = h + m\,(|h| - h)$: at $m = 1$ the sensor reads only the magnitude   m (0)
 quadratic_sensor     $y = h + a\,h^2$: a calibration curve bent to one side                    a (0)
 quadratic_input      $\tilde u = u + b\,u^2$: an actuator whose gain differs with the sign of u   b (0)
+feedthrough          $y = h + d\,u$: a direct path from the input to the sensor                 d (0)
 extra_mode           $y = h + q$, $\ddot q = g\,u - 2\zeta_m\omega_m\dot q - \omega_m^2 q$: one more linear mode   g (0), omega_m, zeta_m
 ==================== ======================================================================== ===================
 
 Each is off at zero strength, so the ranking scores it like any effect (:func:`~torchpaml.rank_missing_effects`).
-The sensor effects act on physics with one output, the input map on physics with one input. A sensor lag reads
+The sensor effects act on physics with one output, the input map on physics with one input, the feedthrough on
+physics with one of each. A sensor lag reads
 the base's output map $h(x, u)$ with the measured input (before any input map of another effect), and replaces the
 output after the output maps added before it. On linear physics a sensor lag and an actuator lag
 (:class:`~torchpaml.InputLag`) give the same output: linear filters commute, so no measurement of u and y tells
@@ -29,7 +31,7 @@ from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effect import AbstractEffect, EffectState
 from torchpaml._physics.memory_effects import sample_interval
 
-__all__ = ["ExtraMode", "MagnitudeSensor", "QuadraticInput", "QuadraticSensor", "SensorLag"]
+__all__ = ["ExtraMode", "Feedthrough", "MagnitudeSensor", "QuadraticInput", "QuadraticSensor", "SensorLag"]
 
 
 def _one_output(name: str, physics: AbstractPhysics) -> str | None:
@@ -123,8 +125,33 @@ class QuadraticInput(AbstractEffect):
         return u + self.b * u * u
 
 
+class Feedthrough(AbstractEffect):
+    r"""A direct path from the input to the sensor, $y = h(x, u) + d\,u$: a measurement that picks up part of the
+    drive (crosstalk in an electronic circuit, a sensor mounted on the actuator), or dynamics far faster than the
+    samples that pass the input through. ``d`` ([y]/[u]) is the strength. For physics with one input and one
+    output (on Silverbox the ladder adds it, ``d`` = -0.0366 V/V)."""
+
+    name, equation = "feedthrough", "y -> y + d*u"
+    reads_input = True
+
+    def __init__(self, d: float = 0.0, *, learn=("d",)):
+        super().__init__()
+        register_parameters(self, [PhysicalParameter("d", d, "[y]/[u]", Real(), "direct gain from input to output")],
+                            learn)
+
+    def applies_to(self, physics: AbstractPhysics):
+        if physics.input_dim != 1:
+            return f"{self.name} passes a single input; {physics.display_name} has {physics.input_dim}"
+        return _one_output(self.name, physics) or super().applies_to(physics)
+
+    def output_map(self, y, z=None, u=None):
+        return y + self.d * u[..., :1, :]
+
+
 #: The extra mode's damping ratio at its starts: broad enough that a start near the mode's frequency sees it.
 MODE_DAMPING = 0.3
+#: The least damping ratio of the extra mode while the ranking refits it (:meth:`ExtraMode.bounds`).
+MIN_DAMPING = 1e-3
 
 
 class ExtraMode(AbstractEffect):
@@ -168,6 +195,14 @@ class ExtraMode(AbstractEffect):
         if not low < high:
             return [{}]
         return [{"omega_m": low * (high / low) ** (i / 4), "zeta_m": MODE_DAMPING} for i in range(5)]
+
+    def bounds(self, records):
+        r"""``omega_m`` up to the Nyquist frequency $\pi/h$ and ``zeta_m`` in [:data:`MIN_DAMPING`, 10]: a mode beyond
+        the Nyquist frequency is one the samples do not resolve, and an undamped one rings forever after its start
+        (measured on Silverbox's last rung: unbounded, a refit drove the mode to 1.08 times the Nyquist frequency and
+        its damping to 2.6e-21, a direct path from the input in disguise)."""
+        step = sample_interval(records)
+        return {"zeta_m": (MIN_DAMPING, 10.0)} | ({} if step is None else {"omega_m": (0.0, math.pi / step)})
 
     def output_map(self, y, z=None):
         return y + z[..., :1, :]

@@ -7,8 +7,9 @@ place                     the extension a probe fits                          li
 actuator dynamics         a linear state on the input side                    input_lag
 sensor dynamics           a linear state on the output side                   sensor_lag
 extra mode                one more linear mode of the device (a pole pair)    extra_mode
-output map                a static map of the output (a calibration curve,    quadratic_sensor, magnitude_sensor,
-                          a sensor that reads only the magnitude)             output_saturation
+output map                a static map of the output, y = h(x, u) (a          quadratic_sensor, magnitude_sensor,
+                          calibration curve, a sensor that reads only the     output_saturation, feedthrough
+                          magnitude, a direct path from the input)
 input map                 a static map of the input                           quadratic_input, input_saturation,
                                                                               dead_zone
 force                     a force on each degree of freedom, a closed form    the library's forces, and the
@@ -46,8 +47,9 @@ PLACES = (
     Place("actuator dynamics", "a linear state on the input side", ("input_lag",)),
     Place("sensor dynamics", "a linear state on the output side", ("sensor_lag",)),
     Place("extra mode", "one more linear mode (a pole pair)", ("extra_mode",)),
-    Place("output map", "a static map of the output: a calibration curve, a magnitude-only sensor",
-          ("quadratic_sensor", "magnitude_sensor", "output_saturation")),
+    Place("output map", "a static map of the output, y = h(x, u): a calibration curve, a magnitude-only sensor, a "
+                        "direct path from the input", ("quadratic_sensor", "magnitude_sensor", "output_saturation",
+                                                        "feedthrough")),
     Place("input map", "a static map of the input", ("quadratic_input", "input_saturation", "dead_zone")),
     Place(FORCE, "a force on each degree of freedom, a closed form of its states",
           ("cubic_stiffness", "quadratic_stiffness", "pendulum_restoring", "coulomb_friction", "quadratic_damping",
