@@ -92,11 +92,8 @@ boucwen: install
 emps: install
 	$(PYTHON) experiments/emps/run.py --out results/emps
 
-# The leaderboard: the four measured benchmarks on their protocols (each writes results/<name>/<name>.json), then the
-# benchmarks page's tables, the leaderboard among them, from those files.
+# The leaderboard: every registered benchmark (torchpaml.leaderboard.BENCHMARKS) on its protocol, each writing
+# results/<name>/<name>.json, then the benchmarks page's tables, the leaderboard among them, from those files.
 leaderboard: install
-	$(PYTHON) experiments/silverbox/run.py --out results/silverbox --discover
-	$(PYTHON) experiments/cascaded_tanks/run.py --out results/cascaded_tanks --discover
-	$(PYTHON) experiments/emps/run.py --out results/emps
-	$(PYTHON) experiments/boucwen/run.py --out results/boucwen
+	$(PYTHON) -m torchpaml.leaderboard --results results
 	$(PYTHON) benchmarks/tables.py --results results --write docs/benchmarks.md docs/tutorials/*.md

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from torchpaml._render.tables import paper_table
+from torchpaml.leaderboard import BENCHMARKS, Benchmark
 
 
 def _pct(fraction: float | None) -> str:
@@ -157,21 +158,10 @@ def _bounded(bounded: dict) -> list[str]:
     return lines
 
 
-#: The published figures the leaderboard sets ours beside, per benchmark: its headline test split, and the best
-#: published black box and grey box (value, who, where). Quoted from the literature, not computed.
-PUBLISHED = {
-    "silverbox": {"split": "test_multisine", "black": ("0.31–0.33 mV", "GRU, 3 seeds", "tsfast workshop 2025"),
-                  "grey": ("—", "none found", "")},
-    "cascaded_tanks": {"split": "test", "black": ("0.30 V", "CT-SUBNET, median; best run 0.217 V", ""),
-                       "grey": ("0.18 V", "Rogers, Holmes, Cross, Worden", "2017, as quoted by Forgione & Piga 2021")},
-    "emps": {"split": "test", "black": ("4.61 mm", "CT-SUBNET", "its notebooks' outputs"),
-             "grey": ("—", "none found", "")},
-    "boucwen": {"split": "test_multisine", "black": ("1.87e-5 m", "PNLSS with hysteresis decoupling", ""),
-                "grey": ("—", "none found", "")},
-}
-#: The leaderboard's JSON files under ``--results``, by benchmark.
-LEADERBOARD = {"silverbox": "silverbox/silverbox.json", "cascaded_tanks": "cascaded_tanks/cascaded_tanks.json",
-               "emps": "emps/emps.json", "boucwen": "boucwen/boucwen.json"}
+def _published(benchmark: Benchmark, kind: str) -> str:
+    """The first published figure of ``kind`` in the benchmark's registry entry, with who and where."""
+    found = next((p for p in benchmark.published if p.kind == kind), None)
+    return "— (none found)" if found is None else f"{found.figure} ({found.model}; {found.source})"
 
 
 def _figure(value: float | None, unit: str) -> str:
@@ -186,25 +176,25 @@ def leaderboard(results: Path) -> str | None:
     lines = ["| benchmark (split) | linear physics | final grey box | + orthogonal residual | best published black box "
              "| best published grey box | goal |", "|---|---|---|---|---|---|---|"]
     rows = 0
-    for name, path in LEADERBOARD.items():
-        if not (results / path).is_file():
+    for name, benchmark in BENCHMARKS.items():
+        path = results / name / f"{name}.json"
+        if not path.is_file():
             continue
-        data, published = json.loads((results / path).read_text()), PUBLISHED[name]
-        split, unit = published["split"], data["protocol"]["unit"]
+        data = json.loads(path.read_text())
+        split, unit = benchmark.goal_split, benchmark.unit
         hybrid = data["hybrid"]
         verdict = "accepted" if hybrid["accepted"] else \
             "physics complete: not used" if hybrid["reason"].startswith("physics complete") else \
             "alarm: not quoted as accuracy"
         if hybrid["rmse"][split] is None:
             verdict = "the test input leaves the residual's domain; " + verdict
-        black, grey = published["black"], published["grey"]
         floor = f" (the noise floor: {data['noise_floor']['rms']:.3g} {unit})" if "noise_floor" in data else ""
         goal = data["goal"]
         met = "met" if goal["met"] else f"not met: {goal['limit']['kind']}"
         lines.append(f"| {name} ({split}) | {_figure(data['models'][0]['rmse'][split], unit)} "
                      f"| {_figure(data['models'][-1]['rmse'][split], unit)} ({data['models'][-1]['model']}) "
-                     f"| {_figure(hybrid['rmse'][split], unit)} ({verdict}) | {black[0]} ({black[1]}{'; ' + black[2] if black[2] else ''}) "
-                     f"| {grey[0]} ({grey[1]}{'; ' + grey[2] if grey[2] else ''}) | ≤ {_figure(goal['value'], unit)}, {met}{floor} |")
+                     f"| {_figure(hybrid['rmse'][split], unit)} ({verdict}) | {_published(benchmark, 'black box')} "
+                     f"| {_published(benchmark, 'grey box')} | ≤ {_figure(goal['value'], unit)}, {met}{floor} |")
         rows += 1
     return "\n".join(lines) if rows else None
 
@@ -213,10 +203,11 @@ def limits(results: Path) -> str | None:
     """What limits each benchmark's figure (the ``goal`` field of ``make leaderboard``'s files): the goal, the figure
     that counts, whether it meets the goal, and the limit with the numbers that show it."""
     lines = ["| benchmark | goal | figure | limit | what shows it |", "|---|---|---|---|---|"]
-    for name, path in LEADERBOARD.items():
-        if not (results / path).is_file():
+    for name in BENCHMARKS:
+        path = results / name / f"{name}.json"
+        if not path.is_file():
             continue
-        data = json.loads((results / path).read_text())
+        data = json.loads(path.read_text())
         goal, unit = data["goal"], data["protocol"]["unit"]
         kind = f"{goal['limit']['kind']}{' (goal met)' if goal['met'] else ''}"
         lines.append(f"| {name} ({goal['split']}) | ≤ {_figure(goal['value'], unit)} "

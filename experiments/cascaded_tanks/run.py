@@ -2,8 +2,9 @@ r"""Cascaded tanks (measured): diagnose a user's linear two-tank physics with us
 
     python experiments/cascaded_tanks/run.py --out DIR [--data PATH] [--discover]
 
-The official split (``shared/data/cascaded_tanks/README.md``): ``estimation`` for training (its last
-:data:`VALIDATION_SHARE` held out inside it for validation), ``test`` for the test only. Both records
+The protocol is the registered :data:`BENCHMARK` (:mod:`torchpaml.leaderboard`; the data:
+``shared/data/cascaded_tanks/README.md``): ``estimation`` for training (its last quarter held out inside it for
+validation), ``test`` for the test only. Both records
 start from the same unknown state, so the initial state is estimated with the parameters on the
 training part (which starts where ``estimation`` starts) and the test is simulated from it: no test
 sample is used, not even the loader's 5-sample initialisation window.
@@ -14,7 +15,7 @@ sample is used, not even the loader's 5-sample initialisation window.
 2. :func:`~torchpaml._diagnostics.diagnose` with ``initial_state=Estimate()`` and the candidates
    ``sqrt_outflow_upper``, ``sqrt_outflow_lower`` (Torricelli), ``upper_overflow`` (the upper tank
    spills above a rim) and ``sensor_clip`` (the level clips at 10 V), plus the library's ``output_saturation`` and ``dead_zone``, which apply to any physics.
-3. Every rung is scored on ``test``.
+3. Every rung, the hybrid and every probe's extension are scored on ``test``.
 4. With ``--discover``, the discovery alone on the linear ``TwoTanks`` (no user effects): which rates
    the physics misses, in closed form (:func:`~torchpaml._diagnostics.discover_missing_force`), scored
    on ``test`` as ``discovery {expression, terms, rmse {test}}``.
@@ -23,44 +24,27 @@ sample is used, not even the loader's 5-sample initialisation window.
    diagnosis so: ``free_spill {rate, solver, rmse {test}, seconds}`` (``null`` then, or where no overflow was found).
 
 Writes ``DIR/cascaded_tanks.json`` in the shape of ``silverbox.json``, with ``rmse: {"test": V}`` and
-``nrmse: {"test": RMSE / std y}``, plus the leaderboard's fields (:mod:`leaderboard`; ``goal`` with what limits the
-figure, :func:`goal`), and the diagnosis folder ``DIR/diagnosis/``.
+``nrmse: {"test": RMSE / std y}``, plus the leaderboard's fields (:mod:`torchpaml.leaderboard`; ``goal`` with what
+limits the figure, :func:`goal`), and the diagnosis folder ``DIR/diagnosis/``.
 """
 
 from __future__ import annotations
 
 import argparse
-import copy
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
+from tanks import FREE_SPILL_RATE, MAX_SPILL_RATE, SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow
 
-from leaderboard import SCHEMA_VERSION, goal_entry, hybrid_entry, probe_entries, protocol, write_result  # noqa: E402
-from tanks import FREE_SPILL_RATE, MAX_SPILL_RATE, SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow  # noqa: E402
-
-from torchpaml.cli.progress import progress_lines  # noqa: E402
-from torchpaml import (
-    DeadZone,
-    Discoverer,
-    Estimate,
-    ModelScore,
-    OutputSaturation,
-    Record,
-    diagnose,
-    fit_physics,
-    simulate_record,
-    write_report,
-)
+from torchpaml import (DeadZone, Discoverer, Estimate, ModelScore, OutputSaturation, Record, diagnose, fit_physics,
+                       simulate_record, write_report)
+from torchpaml.cli.progress import progress_lines
+from torchpaml.leaderboard import (SCHEMA_VERSION, benchmark, goal_entry, hybrid_entry, ladder_entries,
+                                   probe_entries, with_effect, write_result)
 from torchpaml.report import diagnosis_to_dict, discovery_to_dict, ranking_table
 
-DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "cascaded_tanks"
-VALIDATION_SHARE = 0.25
-#: The pump's voltage is a zero-order-hold multisine (the data README): constant between samples.
-HOLD = "zoh"
-#: The leaderboard's goal on the test record, V.
-GOAL = 0.20
+BENCHMARK = benchmark("cascaded_tanks")
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / BENCHMARK.folder
 
 
 def candidates(spill_rate: float = MAX_SPILL_RATE) -> list:
@@ -68,34 +52,25 @@ def candidates(spill_rate: float = MAX_SPILL_RATE) -> list:
             SensorClip(), OutputSaturation(), DeadZone()]
 
 
-def test_rmse(model, solver, x0, test: Record) -> float:
-    """The benchmark's metric: RMSE of the lower level over the whole test record, free run from ``x0``."""
-    return float((test.y - simulate_record(model, test, x0, solver=solver)[0])[:, 0].square().mean().sqrt())
-
-
-def free_spill(final: ModelScore, train: Record, test: Record) -> dict | None:
-    """The final model refitted from its values with the spill rate free (up to :data:`FREE_SPILL_RATE`): its rate
-    and test RMSE, and the seconds the fit took; ``None`` where the final model has no ``upper_overflow``. As the
-    rate grows the spill becomes instant: the upper level clips at the rim, the overflow as the literature's grey box
+def free_spill(final: ModelScore, train: Record, tests: dict[str, Record]) -> dict | None:
+    """The final model refitted from its values with the spill rate free (up to ``FREE_SPILL_RATE``): its rate and
+    test RMSE, and the seconds the fit took; ``None`` where the final model has no ``upper_overflow``. As the rate
+    grows the spill becomes instant: the upper level clips at the rim, the overflow as the literature's grey box
     writes it. TR-BDF2 integrates it (the fit's step check chooses it where RK4 is unstable)."""
     if "upper_overflow" not in final.model.effect_names():
         return None
-    start, model = time.perf_counter(), copy.deepcopy(final.model)
-    effects = dict(model.effects)
-    bounded = effects["upper_overflow"]
+    start, bounded = time.perf_counter(), final.model.effects["upper_overflow"]
     values = {name: float(getattr(bounded, name).detach()) for name in ("c", "h", "s")}
-    effects["upper_overflow"] = UpperOverflow(**values, max_rate=FREE_SPILL_RATE)
-    free = model.without_effects()
-    for effect in effects.values():
-        free = free + effect
+    free = with_effect(final.model, UpperOverflow(**values, max_rate=FREE_SPILL_RATE))
     fit = fit_physics(free, [train], initial_state=Estimate(), start_states=final.train_states, ftol=1e-8)
-    return {"rate": float(effects["upper_overflow"].c.detach()), "solver": type(fit.solver).__name__,
-            "rmse": {"test": test_rmse(free, fit.solver, fit.initial_states[0], test)},
+    return {"rate": float(free.effects["upper_overflow"].c.detach()), "solver": type(fit.solver).__name__,
+            "rmse": {name: BENCHMARK.score(free, record, solver=fit.solver, train_state=fit.initial_states[0])
+                     for name, record in tests.items()},
             "seconds": time.perf_counter() - start}
 
 
 def goal(models: list[dict], hybrid: dict, spill: dict | None, validation: float) -> dict:
-    """:data:`GOAL` on test, and what limits the figure: the model class where neither the spill's rate (bounded
+    """The goal on test, and what limits the figure: the model class where neither the spill's rate (bounded
     against free) nor the data's split explains the error, which stands on validation as on test."""
     final = models[-1]["rmse"]["test"]
     evidence = {"bounded_spill": final, "validation": validation}
@@ -106,7 +81,7 @@ def goal(models: list[dict], hybrid: dict, spill: dict | None, validation: float
         explanation += (f"; the spill's rate does not limit it either: left free, the fit makes the spill "
                         f"{spill['rate']:.4g} 1/s (the upper level clips at the rim) and the test figure is "
                         f"{spill['rmse']['test']:.3g} V against {final:.3g} V with the rate bounded")
-    return goal_entry(GOAL, "test", models, hybrid, "model class", evidence, explanation)
+    return goal_entry(BENCHMARK, models, hybrid, "model class", evidence, explanation)
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -123,53 +98,40 @@ def main(argv: list[str] | None = None) -> dict:
     if not (args.data / "estimation.csv").is_file():
         parser.error(f"{args.data} has no estimation.csv; point --data at shared/data/cascaded_tanks")
     start = time.perf_counter()
-    estimation = Record.from_csv(args.data / "estimation.csv", "estimation", hold=HOLD)
-    test = Record.from_csv(args.data / "test.csv", "test", hold=HOLD)
-    cut = int(round((1 - VALIDATION_SHARE) * len(estimation.t)))
-    train, validation = estimation.window(0, cut, "train"), estimation.window(cut, None, "validation")
+    estimation = Record.from_csv(args.data / f"{BENCHMARK.train}.csv", "estimation", hold=BENCHMARK.hold)
+    tests = {name: Record.from_csv(args.data / f"{name}.csv", name, hold=BENCHMARK.hold) for name in BENCHMARK.tests}
+    train, validation = BENCHMARK.split(estimation)
     physics = TwoTanks(k1=0.01, k2=0.01, k3=0.01, k4=0.02, learn=("k1", "k3", "k4"))  # 100 s; 2 V/V
     spill_rate = FREE_SPILL_RATE if args.free_spill else MAX_SPILL_RATE
     alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
     diagnosis = diagnose(physics, candidates(spill_rate), train, validation, initial_state=Estimate(), alpha=alpha)
     write_report(diagnosis, args.out / "diagnosis")
-    models = []
-    content = diagnosis_to_dict(diagnosis)  # its uncertainty: null where a parameter is not determined
-    for step, rung in zip(diagnosis.ladder.steps, content["ladder"], strict=True):
-        rmse = test_rmse(step.model, step.solver, step.train_states[0], test)
-        models.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
-                       "uncertainty": rung["uncertainty"], "initial_state": step.train_states[0].tolist(),
-                       "solver": type(step.solver).__name__, "substeps": step.solver.substeps,
-                       "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}})
-        print(f"{step.name}: test RMSE {rmse:.3f} V", flush=True)
+    models = ladder_entries(BENCHMARK, diagnosis, tests)
+    for row, step in zip(models, diagnosis.ladder.steps, strict=True):
+        row["initial_state"] = step.train_states[0].tolist()
+        row["nrmse"] = {name: value / float(tests[name].y.std()) for name, value in row["rmse"].items()}
     final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy
-    hybrid = hybrid_entry(final, [train], alpha, alarm,
-                          {"test": (test, final.train_states[0])},
-                          lambda record, y: float((record.y - y)[:, 0].square().mean().sqrt()))
-    spill = None if args.free_spill else free_spill(final, train, test)
+    hybrid = hybrid_entry(BENCHMARK, final, [train], alpha, alarm, tests)
+    spill = None if args.free_spill else free_spill(final, train, tests)
     if spill is not None:
         print(f"spill rate free: {spill['rate']:.3g} 1/s, test RMSE {spill['rmse']['test']:.3f} V "
               f"({spill['seconds']:.0f} s)", flush=True)
-    y_validation = simulate_record(final.model, estimation, final.train_states[0], solver=final.solver)[0][cut:]
+    y_validation = simulate_record(final.model, estimation, final.train_states[0], solver=final.solver)[0][len(train.t):]
     validation_rmse = float((validation.y - y_validation)[:, 0].square().mean().sqrt())
-    result = {"schema_version": SCHEMA_VERSION, "benchmark": "cascaded_tanks",
-              "protocol": protocol("estimation (its last 25 % for validation)", ["test"], 0,
-                                   "RMSE of the lower level, free run from the estimation record's estimated "
-                                   "initial state (the benchmark document: both records start from the same state)",
-                                   "V"),
-              "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid, "hybrids": content["hybrid"],
-              "free_spill": spill, "goal": goal(models, hybrid, spill, validation_rmse),
-              "probes": probe_entries(diagnosis.probes, lambda score: {"test": test_rmse(
-                  score.model, score.solver, score.train_states[0], test)}),
-              "seconds": time.perf_counter() - start}
+    result = {"schema_version": SCHEMA_VERSION, "benchmark": BENCHMARK.name, "protocol": BENCHMARK.protocol(),
+              "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid,
+              "hybrids": diagnosis_to_dict(diagnosis)["hybrid"], "free_spill": spill,
+              "goal": goal(models, hybrid, spill, validation_rmse),
+              "probes": probe_entries(BENCHMARK, diagnosis.probes, tests), "seconds": time.perf_counter() - start}
     if args.discover:
-        found = diagnose(physics, [], train, validation, initial_state=Estimate(), discovery=Discoverer()).discovery
-        model = (found.discovered or found.physics)
-        rmse = test_rmse(model.model, model.solver, model.train_states[0], test)
+        found = diagnose(physics, [], train, validation, initial_state=Estimate(), discovery=Discoverer(),
+                         prober=None).discovery
+        rmse = BENCHMARK.scores(found.discovered or found.physics, tests)
         written = discovery_to_dict(found)
         result["discovery"] = {"expression": written["expression"], "terms": written["terms"],
-                               "recommended": written["recommended"], "reason": written["reason"],
-                               "rmse": {"test": rmse}, "nrmse": {"test": rmse / float(test.y.std())}}
-        print(f"discovered {found.expression}: test RMSE {rmse:.3f} V", flush=True)
+                               "recommended": written["recommended"], "reason": written["reason"], "rmse": rmse,
+                               "nrmse": {name: value / float(tests[name].y.std()) for name, value in rmse.items()}}
+        print(f"discovered {found.expression}: test RMSE {rmse['test']:.3f} V", flush=True)
         result["seconds"] = time.perf_counter() - start
     for ranking in diagnosis.ladder.rankings:
         print(ranking_table(ranking))

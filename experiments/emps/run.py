@@ -2,11 +2,12 @@ r"""EMPS (a measured positioning system): diagnose a user's rigid body, add what
 
     python experiments/emps/run.py --out DIR [--data PATH] [--shortlist K]
 
-The official protocol (``shared/data/emps/README.md``): ``estimation.csv`` for training, its last
-:data:`VALIDATION_SHARE` held out inside it for validation (the ranking's and the residual's choices use those
-only); ``test.csv`` is touched once, for the reported figure. The model is simulated in free run from the motor
-voltage ``vir`` to the motor position ``qm``; its state is estimated on the first :data:`INIT_SAMPLES` samples of the
-test record (the ``nonlinear_benchmarks`` loader's window) and the RMSE of the position over the rest is in mm. Beside
+The protocol is the registered :data:`BENCHMARK` (:mod:`torchpaml.leaderboard`; the data:
+``shared/data/emps/README.md``): ``estimation.csv`` for training, its last 20 % held out inside it for validation
+(the ranking's and the residual's choices use those only); ``test.csv`` is touched once, for the reported figure.
+The model is simulated in free run from the motor voltage ``vir`` to the motor position ``qm``; its state is
+estimated on the first 20 samples of the test record (the ``nonlinear_benchmarks`` loader's window) and the RMSE of
+the position over the rest is in mm. Beside
 it, ``test_velocity``: the RMSE of the model's velocity in mm/s against the central differences of the measured
 position (the records hold no measured velocity), a measure that a force error does not integrate into a drift.
 
@@ -16,52 +17,29 @@ position (the records hold no measured velocity), a measure that a force error d
    an offset, Coulomb friction, quadratic damping; a free carriage has no spring, so the position-dependent
    effects are left out), each record's initial state estimated (``Estimate()``): the ladder adds what the
    validation asks for.
-3. Every rung is scored on the test record; the final one with the orthogonal residual on top too
-   (:mod:`leaderboard`).
+3. Every rung is scored on the test record; the final one with the orthogonal residual on top too, and every probe's
+   extension (:mod:`torchpaml.leaderboard`).
 
-Writes ``DIR/emps.json`` (the leaderboard's fields, :mod:`leaderboard`, with what limits the figure in ``goal``
+Writes ``DIR/emps.json`` (the leaderboard's fields, :mod:`torchpaml.leaderboard`, ``rmse: {test, test_velocity}``, with what limits the figure in ``goal``
 (:func:`goal`), plus ``found`` and ``friction {forward_N, backward_N}``: the Coulomb friction against each direction of
 motion, the offset included) and ``DIR/diagnosis/``.
 """
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the leaderboard's contract, beside the experiments
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import torch
+from rigid_body import RigidBody  # the user's physics, beside this script
 
-from leaderboard import (SCHEMA_VERSION, arguments, goal_entry, hybrid_entry, model_entry, probe_entries, protocol,
-                         write_result)  # noqa: E402
-from rigid_body import RigidBody  # noqa: E402
+from torchpaml import ConstantForce, CoulombFriction, Estimate, QuadraticDamping, Ranker, Record, diagnose, write_report
+from torchpaml.cli.progress import progress_lines
+from torchpaml.leaderboard import (SCHEMA_VERSION, arguments, benchmark, goal_entry, hybrid_entry, ladder_entries,
+                                   probe_entries, write_result)
 
-import torch  # noqa: E402
-
-from torchpaml.cli.progress import progress_lines  # noqa: E402
-from torchpaml import (
-    Auto,
-    ConstantForce,
-    CoulombFriction,
-    Estimate,
-    QuadraticDamping,
-    Ranker,
-    Record,
-    diagnose,
-    estimate_initial_state,
-    simulate_record,
-    write_report,
-)
-from torchpaml.report import diagnosis_to_dict
-
-DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "emps"
-#: The share of the estimation record held out for validation, at its end.
-VALIDATION_SHARE = 0.2
-#: Samples of a test record that may set the model's initial state (the benchmark's loader).
-INIT_SAMPLES = 20
-#: The leaderboard's goal on the test record, mm.
-GOAL = 4.6
+BENCHMARK = benchmark("emps")
+DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / BENCHMARK.folder
 
 
 def candidates() -> list:
@@ -69,36 +47,14 @@ def candidates() -> list:
     return [ConstantForce(), CoulombFriction(), QuadraticDamping()]
 
 
-def split(record: Record) -> tuple[Record, Record]:
-    cut = round((1 - VALIDATION_SHARE) * len(record.t))
-    return record.window(0, cut, "train"), record.window(cut, None, "validation")
-
-
-def position_rmse_mm(record: Record, y_model) -> float:
-    """The benchmark's metric: RMSE of the position in mm after the initialisation window."""
-    error = (record.y - y_model)[INIT_SAMPLES:, 0]
-    return 1000 * float(error.square().mean().sqrt())
-
-
-def velocity_rmse_mm_s(record: Record, states) -> float:
-    """RMSE in mm/s of the model's velocity (its second state; ``states`` (time, n_state)) against the central
-    differences of the measured position, after the initialisation window."""
+def velocity_rmse_mm_s(step, record: Record) -> float:
+    """RMSE in mm/s of a scored model's velocity (its second state) against the central differences of the measured
+    position, free run from the state the first samples set, after them: beside the position's figure, a measure
+    that a force error does not integrate into a drift."""
+    x0 = BENCHMARK.start_of(step.model, record, step.solver)
+    states = step.fitted.states(record, x0).reshape(len(record.t), -1)
     measured = torch.gradient(record.y[:, 0], spacing=(record.t,))[0]
-    return 1000 * float((measured - states[:, 1])[INIT_SAMPLES:].square().mean().sqrt())
-
-
-def test_scores(score, record: Record) -> dict[str, float]:
-    """A fitted model's figures on ``record``: ``test``, the position's RMSE in mm, and ``test_velocity``, the
-    velocity's in mm/s (:func:`velocity_rmse_mm_s`), from the state its first samples set."""
-    x0 = test_start(score.model, score.solver, record)
-    y = simulate_record(score.model, record, x0, solver=score.solver)[0]
-    states = score.fitted.states(record, x0).reshape(len(record.t), -1)
-    return {"test": position_rmse_mm(record, y), "test_velocity": velocity_rmse_mm_s(record, states)}
-
-
-def test_start(model, solver, record: Record):
-    """The state that best explains the first :data:`INIT_SAMPLES` samples, the parameters fixed."""
-    return estimate_initial_state(model, record, INIT_SAMPLES, solver=Auto(start=solver))
+    return 1000 * float((measured - states[:, 1])[BENCHMARK.init_window:].square().mean().sqrt())
 
 
 def friction(parameters: dict[str, float]) -> dict[str, float]:
@@ -110,50 +66,42 @@ def friction(parameters: dict[str, float]) -> dict[str, float]:
 
 
 def goal(final, parts: list[Record], models: list[dict], hybrid: dict) -> dict:
-    """:data:`GOAL` on test, and what limits the figure: the model class where the final grey box drifts as far on the
-    estimation record's own parts (each started from its first :data:`INIT_SAMPLES` samples) as on test, so that
-    what it misses is in the estimation record too, not only in the test's unmeasured force pulses."""
-    evidence = {}
-    for record in parts:
-        y = simulate_record(final.model, record, test_start(final.model, final.solver, record), solver=final.solver)[0]
-        evidence[record.name] = position_rmse_mm(record, y)
+    """The goal on test, and what limits the figure: the model class where the final grey box drifts as far on the
+    estimation record's own parts (each started from its first samples, as the test) as on test, so that what it
+    misses is in the estimation record too, not only in the test's unmeasured force pulses."""
+    evidence = {record.name: BENCHMARK.score(final.model, record, solver=final.solver) for record in parts}
     evidence["test"] = models[-1]["rmse"]["test"]
     explanation = (f"the model class: the final grey box drifts {evidence['train']:.2g} mm on the estimation record's "
                    f"training part and {evidence['validation']:.2g} mm on its validation part, both free runs from "
-                   f"the same {INIT_SAMPLES}-sample window as the test ({evidence['test']:.2g} mm): the force it misses "
-                   f"acts during the estimation run too, which has no external pulses. An integrating plant turns "
-                   f"any such force error into a drift of the position")
-    return goal_entry(GOAL, "test", models, hybrid, "model class", evidence, explanation)
+                   f"the same {BENCHMARK.init_window}-sample window as the test ({evidence['test']:.2g} mm): the force "
+                   f"it misses acts during the estimation run too, which has no external pulses. An integrating plant "
+                   f"turns any such force error into a drift of the position")
+    return goal_entry(BENCHMARK, models, hybrid, "model class", evidence, explanation)
 
 
 def main(argv: list[str] | None = None) -> dict:
-    parser = arguments(__doc__, DATA)
+    parser = arguments(BENCHMARK, __doc__, DATA)
     args = parser.parse_args(argv)
-    if not (args.data / "estimation.csv").is_file():
-        parser.error(f"{args.data} has no estimation.csv; point --data at shared/data/emps")
+    if not (args.data / f"{BENCHMARK.train}.csv").is_file():
+        parser.error(f"{args.data} has no {BENCHMARK.train}.csv; point --data at shared/data/{BENCHMARK.folder}")
     start = time.perf_counter()
-    train, validation = split(Record.from_csv(args.data / "estimation.csv", "estimation"))
-    test = Record.from_csv(args.data / "test.csv", "test")
+    train, validation = BENCHMARK.split(Record.from_csv(args.data / f"{BENCHMARK.train}.csv", "estimation"))
+    tests = {name: Record.from_csv(args.data / f"{name}.csv", name) for name in BENCHMARK.tests}
     alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
     diagnosis = diagnose(RigidBody(M=100.0, Fv=100.0), candidates(), train, validation,
                          ranker=Ranker(shortlist=args.shortlist), initial_state=Estimate(), alpha=alpha)
     write_report(diagnosis, args.out / "diagnosis")
-    content = diagnosis_to_dict(diagnosis)  # its uncertainty: null where a parameter is not determined
-    models = []
-    for step, rung in zip(diagnosis.ladder.steps, content["ladder"], strict=True):
-        models.append(model_entry(step, rung["uncertainty"], test_scores(step, test)))
-        print(f"{step.name}: test RMSE {models[-1]['rmse']['test']:.2f} mm, velocity "
-              f"{models[-1]['rmse']['test_velocity']:.2f} mm/s", flush=True)
+    models = ladder_entries(BENCHMARK, diagnosis, tests)
+    for row, step in zip(models, diagnosis.ladder.steps, strict=True):
+        row["rmse"]["test_velocity"] = velocity_rmse_mm_s(step, tests["test"])
+        print(f"{step.name}: test velocity {row['rmse']['test_velocity']:.2f} mm/s", flush=True)
     final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy
-    hybrid = hybrid_entry(final, [train], alpha, alarm,
-                          {"test": (test, test_start(final.model, final.solver, test))}, position_rmse_mm)
+    hybrid = hybrid_entry(BENCHMARK, final, [train], alpha, alarm, tests)
     print(f"{hybrid['model']}: test RMSE {hybrid['rmse']['test']} mm, accepted: {hybrid['accepted']}", flush=True)
-    result = {"schema_version": SCHEMA_VERSION, "benchmark": "emps",
-              "protocol": protocol("estimation (its last 20 % for validation)", ["test"], INIT_SAMPLES,
-                                   "RMSE of the position, free run from vir", "mm"),
+    result = {"schema_version": SCHEMA_VERSION, "benchmark": BENCHMARK.name, "protocol": BENCHMARK.protocol(),
               "found": diagnosis.ladder.added, "friction": friction(final.parameters), "models": models,
               "hybrid": hybrid, "goal": goal(final, [train, validation], models, hybrid),
-              "probes": probe_entries(diagnosis.probes, lambda score: test_scores(score, test))}
+              "probes": probe_entries(BENCHMARK, diagnosis.probes, tests)}
     result["seconds"] = time.perf_counter() - start
     return write_result(args.out, result, diagnosis.verdict)
 

@@ -6,6 +6,7 @@ import re
 from pathlib import Path
 
 import torchpaml
+import torchpaml.leaderboard  # a named module that `import torchpaml` does not load
 from torchpaml.cli.commands import parser
 from torchpaml.cli.diagnose import diagnose_command
 from torchpaml.cli.fleet import FLEET_ARGUMENTS
@@ -22,7 +23,7 @@ def test_every_public_name_is_in_the_api_reference():
     documented = set(re.findall(rf"^::: torchpaml\.(?:(?:{private})\.)?(\w+)$", API, re.M))
     assert sorted(set(torchpaml.__all__) - documented) == []
     assert sorted(documented - set(torchpaml.__all__)) == []  # nothing documented that is not exported
-    for module in (torchpaml.analysis, torchpaml.engine, torchpaml.figures, torchpaml.report):
+    for module in (torchpaml.analysis, torchpaml.engine, torchpaml.figures, torchpaml.report, torchpaml.leaderboard):
         named = set(re.findall(rf"^::: {module.__name__}\.(\w+)$", API, re.M))
         assert named == set(module.__all__), module.__name__
 

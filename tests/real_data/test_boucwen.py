@@ -12,19 +12,19 @@ from torchpaml import Record, fit_physics
 
 boucwen = load("boucwen/run.py")
 springs = load("boucwen/mass_spring_damper.py")
-pytestmark = pytest.mark.skipif(not (boucwen.DATA / f"{boucwen.TRAIN}.csv").is_file(),
+pytestmark = pytest.mark.skipif(not (boucwen.DATA / f"{boucwen.BENCHMARK.train}.csv").is_file(),
                                 reason="the Bouc-Wen data (../shared/data/boucwen) are absent")
 
 
 def test_the_linear_mass_spring_damper_on_the_official_test_signals():
-    train = Record.from_csv(boucwen.DATA / f"{boucwen.TRAIN}.csv")
+    train = Record.from_csv(boucwen.DATA / f"{boucwen.BENCHMARK.train}.csv")
     assert len(train.t) == 40960 and float(train.dt) == pytest.approx(1 / 750)
     physics = springs.frequency_response_start(train)
     fit = fit_physics(physics, train)
     frequency = (physics.physical_parameters()["k"] / physics.physical_parameters()["m"]) ** 0.5 / 6.2832
     assert 35 < frequency < 45  # the small-amplitude resonance: the linear 35.6 Hz stiffened by the hysteresis
-    tests = {name: Record.from_csv(boucwen.DATA / f"{name}.csv", name=name) for name in boucwen.TESTS}
-    rmse = boucwen.test_rmse(physics, tests, fit.solver)
+    tests = {name: Record.from_csv(boucwen.DATA / f"{name}.csv", name=name) for name in boucwen.BENCHMARK.tests}
+    rmse = {name: boucwen.BENCHMARK.score(physics, record, solver=fit.solver) for name, record in tests.items()}
     # measured 1.74e-4 m and 1.54e-4 m: a quarter of the output's RMS (6.7e-4 m) on the test multisine
     assert 1.2e-4 < rmse["test_multisine"] < 2.2e-4 and 1.0e-4 < rmse["test_sinesweep"] < 2.0e-4
 

@@ -10,15 +10,15 @@ import math
 import pytest
 
 from experiment_modules import load
+from torchpaml import leaderboard
 
 emps = load("emps/run.py")
-leaderboard = load("leaderboard.py")
 pytestmark = pytest.mark.skipif(not (emps.DATA / "estimation.csv").is_file(),
                                 reason="the EMPS data (../shared/data/emps) are absent")
 
 
 def check_contract(result: dict, benchmark: str, splits: list[str]) -> None:
-    """The leaderboard's fields (``experiments/leaderboard.py``), finite figures, and the ladder from the linear
+    """The leaderboard's fields (:mod:`torchpaml.leaderboard`), finite figures, and the ladder from the linear
     physics to the final grey box."""
     assert result["schema_version"] == leaderboard.SCHEMA_VERSION and result["benchmark"] == benchmark
     assert set(result["protocol"]) == {"train", "test", "init_window", "metric", "unit"}

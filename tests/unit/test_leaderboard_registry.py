@@ -1,0 +1,80 @@
+"""The benchmark contract (``torchpaml.leaderboard``): every registered benchmark is whole, its experiment exists and
+names it, its data (where ../shared is present) holds its splits, and its metric is the one RMSE."""
+
+import math
+from pathlib import Path
+
+import pytest
+import torch
+
+from torchpaml import ConfigurationError, Oscillator, Record, simulate_record
+from torchpaml.leaderboard import BENCHMARKS, Benchmark, Published, benchmark, noise_floor, periodic_twice
+
+ROOT = Path(__file__).resolve().parents[2]
+SHARED = ROOT.parent / "shared" / "data"
+
+
+def test_the_registry_holds_the_four_measured_benchmarks_by_name():
+    assert sorted(BENCHMARKS) == ["boucwen", "cascaded_tanks", "emps", "silverbox"]
+    assert all(entry.name == name for name, entry in BENCHMARKS.items())
+    with pytest.raises(ConfigurationError, match="unknown benchmark 'wiener'; registered: \\['boucwen'"):
+        benchmark("wiener")
+
+
+@pytest.mark.parametrize("name", sorted(BENCHMARKS))
+def test_each_benchmark_is_whole_and_its_experiment_runs_it(name):
+    entry = BENCHMARKS[name]
+    assert entry.goal > 0 and math.isfinite(entry.goal) and entry.goal_split in entry.tests
+    assert entry.published and all(p.figure and p.model and p.source for p in entry.published)
+    script = ROOT / entry.experiment
+    assert script.is_file() and f'benchmark("{name}")' in script.read_text()
+    folder = SHARED / entry.folder
+    if not folder.is_dir():
+        pytest.skip(f"../shared/data/{entry.folder} is absent")
+    for stem in (entry.train, *entry.tests):
+        assert (folder / f"{stem}.csv").is_file(), stem
+
+
+def test_a_goal_split_outside_the_tests_is_refused():
+    with pytest.raises(ValueError, match="must be test splits"):
+        Benchmark("b", "B", "b", "train", ("test",), "RMSE", "V", "other", 1.0,
+                  (Published("1 V", "m", "s", "black box"),), "experiments/b/run.py")
+
+
+def _oscillator_record(name, n=400):
+    t = torch.arange(n, dtype=torch.float64) * 0.05
+    u = torch.sin(1.3 * t)[:, None] + 0.5 * torch.sin(3.1 * t)[:, None]
+    return Record(t, u, torch.zeros(n, 1, dtype=torch.float64), name=name)
+
+
+def test_the_metric_is_the_rmse_after_the_init_window_in_the_benchmarks_unit():
+    model = Oscillator(zeta=0.3, omega0=2.0, gain=4.0)
+    record = _oscillator_record("test")
+    entry = Benchmark("b", "B", "b", "train", ("test",), "RMSE", "mV", "test", 1.0,
+                      (Published("1 mV", "m", "s", "black box"),), "experiments/b/run.py", scale=1000.0,
+                      init_window=50, start="rest")
+    y = simulate_record(model, record)[0]
+    expected = 1000 * float(y[50:, 0].square().mean().sqrt())  # the record's y is 0: the RMSE is the output's RMS
+    assert entry.score(model, record) == pytest.approx(expected, rel=1e-12)
+
+
+def test_a_steady_state_split_is_scored_on_its_second_period():
+    record = _oscillator_record("test_multisine")
+    twice = periodic_twice(record)
+    assert torch.equal(twice.u[:400], twice.u[400:]) and float(twice.t[400] - twice.t[399]) == pytest.approx(0.05)
+    entry = Benchmark("b", "B", "b", "train", ("test_multisine",), "RMSE", "m", "test_multisine", 1.0,
+                      (Published("1 m", "m", "s", "black box"),), "experiments/b/run.py", start="rest",
+                      steady_state=("test_multisine",))
+    assert entry.metric_of(twice, torch.cat([torch.ones(400, 1), torch.zeros(400, 1)])) == 0.0
+
+
+def test_the_noise_floor_of_a_repeated_input_is_the_noise_and_an_input_that_never_repeats_is_refused():
+    torch.manual_seed(0)
+    period, n = 500, 3000
+    u = torch.randn(period, dtype=torch.float64).repeat(n // period)[:, None]
+    noise = 0.01 * torch.randn(n, 1, dtype=torch.float64)
+    record = Record(torch.arange(n, dtype=torch.float64), u, 3 * u + noise, name="repeated")
+    floor, samples = noise_floor(record, period)
+    assert floor == pytest.approx(0.01, rel=0.1) and samples > 1000
+    with pytest.raises(ValueError, match="does not repeat at lag 500"):
+        noise_floor(Record(record.t, torch.randn(n, 1, dtype=torch.float64), record.y, name="random"), period)

@@ -1,0 +1,54 @@
+r"""The benchmarks' protocol numerics, usable on any record: the noise floor of a record whose input repeats, a
+periodic input applied twice (its second period is the steady state), and a fitted model refitted with one of its
+effects replaced."""
+
+from __future__ import annotations
+
+import copy
+import math
+
+import numpy as np
+import torch
+
+from torchpaml._data import Record
+
+__all__ = ["noise_floor", "periodic_twice", "with_effect"]
+
+
+def noise_floor(record: Record, period: int, window: int = 64) -> tuple[float, int]:
+    r"""The output noise's RMS (the data's unit) where ``record``'s input repeats at lag ``period``, and how many
+    samples it rests on. Where $u_k \approx u_{k+P}$ over a run of at least ``2 * window`` samples (the mean gap over
+    ``window`` samples below a tenth of the input's RMS) and the response has settled (each run's second half),
+    $y_k - y_{k+P}$ is the difference of two noise samples: the floor is its RMS over $\sqrt 2$. Raises
+    ``ValueError`` where the input never repeats."""
+    u, y = record.u[:, 0].numpy(), record.y[:, 0].numpy()
+    gap = np.abs(u[:-period] - u[period:])
+    mean_gap = np.convolve(gap, np.ones(window) / window, mode="same")
+    repeats = np.nonzero(mean_gap < 0.1 * np.sqrt(np.mean(u**2)))[0]
+    runs = [run for run in np.split(repeats, np.nonzero(np.diff(repeats) > 1)[0] + 1) if len(run) > 2 * window]
+    if not runs:
+        raise ValueError(f"the input of {record.name!r} does not repeat at lag {period} over {2 * window} samples: "
+                         "no noise floor can be read from it")
+    differences = np.concatenate([y[run[len(run) // 2:]] - y[run[len(run) // 2:] + period] for run in runs])
+    return float(differences.std()) / math.sqrt(2), len(differences)
+
+
+def periodic_twice(record: Record) -> Record:
+    """One period of a periodic record, applied twice (its output repeated): the second is the steady state."""
+    n = len(record.t)
+    return Record(torch.cat([record.t, record.t + n * record.dt]), torch.cat([record.u, record.u]),
+                  torch.cat([record.y, record.y]), name=record.name)
+
+
+def with_effect(model, effect):
+    """A copy of the composed ``model`` with its effect of ``effect``'s name replaced by ``effect``, in its place
+    among the others (a bound changed, a shape freed)."""
+    copied = copy.deepcopy(model)
+    effects = dict(copied.effects)
+    if effect.name not in effects:
+        raise ValueError(f"{model.display_name} has no effect {effect.name!r}; it has {sorted(effects)}")
+    effects[effect.name] = effect
+    replaced = copied.without_effects()
+    for each in effects.values():
+        replaced = replaced + each
+    return replaced

@@ -1,0 +1,33 @@
+"""The registry of the measured benchmarks: every module of :mod:`torchpaml._leaderboard.entries` that defines a
+``BENCHMARK``, by name. A new benchmark is one such file, its experiment script and its data."""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+
+from torchpaml._errors import ConfigurationError
+from torchpaml._leaderboard import entries
+from torchpaml._leaderboard.benchmark import Benchmark
+
+__all__ = ["BENCHMARKS", "benchmark"]
+
+
+def _collect() -> dict[str, Benchmark]:
+    found = {}
+    for info in sorted(pkgutil.iter_modules(entries.__path__), key=lambda info: info.name):
+        defined = getattr(importlib.import_module(f"{entries.__name__}.{info.name}"), "BENCHMARK", None)
+        if isinstance(defined, Benchmark):
+            found[defined.name] = defined
+    return found
+
+
+#: Every registered benchmark, by name, in the order of their files' names.
+BENCHMARKS: dict[str, Benchmark] = _collect()
+
+
+def benchmark(name: str) -> Benchmark:
+    """The registered benchmark ``name``; a :class:`~torchpaml.ConfigurationError` naming the others otherwise."""
+    if name not in BENCHMARKS:
+        raise ConfigurationError(f"unknown benchmark {name!r}; registered: {sorted(BENCHMARKS)}")
+    return BENCHMARKS[name]

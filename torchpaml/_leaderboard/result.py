@@ -1,0 +1,130 @@
+"""The leaderboard's contract: what every benchmark's run writes, ``DIR/<benchmark>.json``::
+
+    {"schema_version", "benchmark",
+     "protocol": {"train", "test", "init_window", "metric", "unit"},
+     "models": [{"model", "equation", "parameters", "uncertainty", "rmse": {<test split>: value}}],
+     "hybrid": {"model", "accepted", "rmse": {<test split>: value or null}, "reason"},
+     "goal": {"value", "split", "figure", "met", "limit": {"kind", "evidence", "explanation"}},
+     "probes": [{"place", "fitted", "validation_gain", "rmse": {<test split>: value}, "kept", "note"}],
+     "seconds"}
+
+``models`` goes from the linear physics to the final grey box; ``hybrid`` is the final model with the orthogonal
+residual of the paper on top (:func:`~torchpaml.analysis.hybrid_residual`, fitted on the training records only),
+``accepted`` where the final rung's alarm recommends it (neither inadequate nor complete physics), and an RMSE of
+``null`` where a test input leaves the residual's domain. ``goal`` holds the benchmark's goal on its headline split
+(:func:`goal_entry`): the figure that counts (the hybrid's where its alarm accepts it, else the final grey box's),
+whether it meets the goal, and what limits it: one of :data:`LIMITS`, with the measured numbers that show it.
+``probes`` holds the diagnosis' probes of where the final grey box's mismatch points (:func:`probe_entries`): each
+place's extension, its validation gain, its test figures, and whether it is kept (the place the probes name); empty
+where the final grey box is complete at the noise level. Every figure is :meth:`Benchmark.score`'s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import torch
+
+from torchpaml._diagnostics.analysis.adequacy import Adequacy
+from torchpaml._diagnostics.diagnosis import Diagnosis, hybrid_residual
+from torchpaml._diagnostics.mismatch.result import MismatchProbes
+from torchpaml._diagnostics.results import ModelScore
+from torchpaml._data import Record
+from torchpaml._data.simulation import simulate_record
+from torchpaml._errors import DomainError
+from torchpaml._leaderboard.benchmark import Benchmark
+from torchpaml._render.schema import diagnosis_to_dict
+
+__all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "ladder_entries", "probe_entries",
+           "write_result"]
+
+#: The version of the leaderboard fields; a change of their meaning raises it.
+SCHEMA_VERSION = 1
+#: What may limit a figure: the measurement noise, the model class (a deterministic error the physics cannot
+#: express), or data that do not determine a parameter (or the state a free run starts from).
+LIMITS = ("noise floor", "model class", "data")
+
+
+def arguments(benchmark: Benchmark, doc: str, data: Path) -> argparse.ArgumentParser:
+    """A benchmark run's command line: ``--out DIR``, ``--data PATH`` (default ``data``) and ``--shortlist K``."""
+    parser = argparse.ArgumentParser(description=doc.split("\n")[0])
+    parser.add_argument("--out", type=Path, required=True, help="output folder")
+    parser.add_argument("--data", type=Path, default=data, help=f"the {benchmark.title} data folder (default {data})")
+    parser.add_argument("--shortlist", type=int, default=2, help="candidates refitted per rung (default 2)")
+    return parser
+
+
+def ladder_entries(benchmark: Benchmark, diagnosis: Diagnosis, tests: dict[str, Record]) -> list[dict]:
+    """Every rung of the diagnosis' ladder as a leaderboard row, scored on ``tests`` (:meth:`Benchmark.scores`), its
+    uncertainty as ``diagnosis.json`` writes it (``null`` where a parameter is not determined); each printed."""
+    rows = []
+    for step, rung in zip(diagnosis.ladder.steps, diagnosis_to_dict(diagnosis)["ladder"], strict=True):
+        rmse = benchmark.scores(step, tests)
+        rows.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
+                     "uncertainty": rung["uncertainty"], "solver": type(step.solver).__name__,
+                     "substeps": step.solver.substeps, "rmse": rmse})
+        print(f"{step.name}: " + ", ".join(f"{k} {v:.4g} {benchmark.unit}" for k, v in rmse.items()), flush=True)
+    return rows
+
+
+def hybrid_entry(benchmark: Benchmark, step: ModelScore, train: list[Record], alpha: float, alarm: Adequacy,
+                 tests: dict[str, Record]) -> dict:
+    """The final model ``step`` plus the Chebyshev-Hammerstein residual fitted on its training residual, scored on
+    each test record as :meth:`Benchmark.score` scores a model; ``None`` where the test input leaves the residual's
+    domain ``alpha``. ``accepted`` where the diagnosis' alarm on the final rung (``alarm``) recommends the hybrid:
+    neither inadequate physics (the residual would hide it) nor complete physics (its residual is noise the
+    orthogonal residual cannot reduce: the diagnosis says to use the physics alone, and a residual fitted to that
+    noise scores by chance); ``reason``: its message."""
+    residual, _ = hybrid_residual(step, train, alpha)
+    rmse = {}
+    for name, record in tests.items():
+        prepared = benchmark.prepared(record)
+        with torch.no_grad():
+            start = benchmark.start_of(step.model, prepared, step.solver, step.train_states[0])
+            y = simulate_record(step.model, prepared, start, solver=step.solver)[0]
+            try:
+                y = y + residual(prepared.elapsed, prepared.u[None])[0]
+            except DomainError:
+                rmse[name] = None
+                continue
+        rmse[name] = benchmark.metric_of(prepared, y)
+    return {"model": f"{step.name} + ChebyshevHammerstein", "accepted": alarm.recommends_hybrid, "rmse": rmse,
+            "reason": alarm.message}
+
+
+def goal_entry(benchmark: Benchmark, models: list[dict], hybrid: dict, limit: str, evidence: dict[str, float],
+               explanation: str) -> dict:
+    """The benchmark's goal on its headline split: the figure that counts (the hybrid's where its alarm accepts it,
+    else the final grey box's), whether it is at most the goal, and what limits it (one of :data:`LIMITS`;
+    ``evidence``, the measured numbers that show it, in the benchmark's unit unless their name says otherwise)."""
+    if limit not in LIMITS:
+        raise ValueError(f"limit must be one of {LIMITS}, got {limit!r}")
+    split = benchmark.goal_split
+    figure = hybrid["rmse"][split] if hybrid["accepted"] and hybrid["rmse"][split] is not None else \
+        models[-1]["rmse"][split]
+    return {"value": benchmark.goal, "split": split, "figure": figure, "met": figure <= benchmark.goal,
+            "limit": {"kind": limit, "evidence": evidence, "explanation": explanation}}
+
+
+def probe_entries(benchmark: Benchmark, probes: MismatchProbes | None, tests: dict[str, Record]) -> list[dict]:
+    """The probes' rows (:class:`~torchpaml.MismatchProbes`) as leaderboard rows, each extended model scored on
+    ``tests`` (:meth:`Benchmark.scores`); ``kept``: the place the probes name. The places were chosen on the
+    validation records; the test figures are reported, not chosen on."""
+    if probes is None:
+        return []
+    best = probes.best
+    return [{"place": row.place, "fitted": row.fitted, "validation_gain": row.gain,
+             "rmse": None if row.score is None else benchmark.scores(row.score, tests), "kept": row is best,
+             "note": row.note} for row in probes.rows]
+
+
+def write_result(out: Path, result: dict, verdict: str) -> dict:
+    """Write ``result`` as ``out/<benchmark>.json``, print the diagnosis' verdict and where it went; returns it."""
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / f"{result['benchmark']}.json"
+    path.write_text(json.dumps(result, indent=2))
+    print(verdict)
+    print(f"wrote {path} in {result['seconds']:.0f} s")
+    return result
