@@ -94,6 +94,16 @@ def boucwen(b: dict) -> str:
     return "\n".join(lines) + f"\n\nFound: {', '.join(b['found']) or 'nothing'}; {b['seconds']:.0f} s."
 
 
+def emps(e: dict) -> str:
+    lines = ["| model | test RMSE (position) | test RMSE (velocity) |", "|---|---|---|"]
+    lines += [f"| {m['model']} | {m['rmse']['test']:.2f} mm | {m['rmse']['test_velocity']:.1f} mm/s |"
+              for m in e["models"]]
+    friction = e["friction"]
+    return "\n".join(lines) + (f"\n\nFound: {', '.join(e['found']) or 'nothing'}; Coulomb friction "
+                               f"{friction['forward_N']:.1f} N against forward motion and {friction['backward_N']:.1f} N "
+                               f"against backward; {e['seconds']:.0f} s.")
+
+
 def _ratio(value: float) -> str:
     return f"{value:.1f}x" if value < 10 else f"{value:.0f}x"
 
@@ -244,6 +254,7 @@ TABLES: dict[str, tuple[str, Callable]] = {
     "silverbox": ("silverbox/silverbox.json", silverbox),
     "tanks": ("cascaded_tanks/cascaded_tanks.json", tanks),
     "boucwen": ("boucwen/boucwen.json", boucwen),
+    "emps": ("emps/emps.json", emps),
     "worst_case": ("bench_worst_case.json", worst_case),
     "silverbox_probes": ("silverbox/silverbox.json", probes),
     "tanks_probes": ("cascaded_tanks/cascaded_tanks.json", probes),

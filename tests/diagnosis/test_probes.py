@@ -11,7 +11,8 @@ actuator lag give one output (``test_signal_effects.py``).
 import pytest
 import torch
 
-from torchpaml import EFFECTS, ConstantForce, CoulombFriction, CubicStiffness, QuadraticDamping, diagnose
+from torchpaml import (EFFECTS, ConstantForce, CoulombFriction, CubicStiffness, DiscoveredForce, QuadraticDamping,
+                       diagnose)
 
 from test_hidden_effects import physics, records, truth
 
@@ -51,6 +52,21 @@ def test_the_probes_point_at_the_missing_part_and_its_effect_reaches_the_floor(n
     assert best.validation < 1.5 * floor, table
     assert best.score.parameters[f"{name}.{EFFECTS[name]().strength}"] == pytest.approx(DEVICES[name][1], rel=0.1)
     assert f"Where the mismatch points: the {best.place} ({name}" in diagnosis.verdict
+
+
+def test_an_output_map_outside_the_library_is_found_in_closed_form():
+    """A sensor whose gain moves with the input, y = x + 0.3 x u: no library effect, so the output map's place fits
+    the closed form of the output's residual, names it, and brings validation to the floor."""
+    torch.manual_seed(0)
+    system = truth() + DiscoveredForce(["x*u"], [0.3], equations=["output"])
+    train, validation, floor = records(system, 1.0)
+    probes = diagnose(physics(), [CoulombFriction(), QuadraticDamping(), ConstantForce()], train, validation).probes
+    table = "\n".join(f"{r.place}: {r.fitted} {r.gain} {r.note}" for r in probes.rows)
+    best = probes.best
+    assert best is probes.rows[0] and best.place == "output map" and best.fitted.startswith("y + "), table
+    assert best.validation < 1.5 * floor, table
+    form = best.score.model.effects["output_closed_form"]
+    assert form.terms == ["u*x"] and form.values()["c_u_x"] == pytest.approx(0.3, rel=0.05)
 
 
 def test_a_complete_model_is_not_probed():

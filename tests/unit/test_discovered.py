@@ -89,6 +89,27 @@ def test_several_equations_print_one_expression_each():
     assert force.expression() == {"upper": "-0.5*sqrt(Abs(upper))", "lower": "0.5*sqrt(Abs(upper))"}
 
 
+def test_an_output_term_adds_to_the_output_of_the_states_and_input_and_leaves_the_rates():
+    base = Oscillator(zeta=0.2, omega0=2.0, gain=4.0, learn=())
+    model = base + DiscoveredForce(["x*u", "v", "1"], [0.3, -0.1, 0.05], equations=["output"] * 3)
+    x = torch.tensor([[0.3, -1.2], [1.0, 0.5]], dtype=torch.float64)
+    u = torch.tensor([[0.7], [-2.0]], dtype=torch.float64)
+    assert torch.equal(model.derivative(torch.zeros(2), x, u), base.derivative(torch.zeros(2), x, u))
+    expected = x[:, 0] + 0.3 * x[:, 0] * u[:, 0] - 0.1 * x[:, 1] + 0.05
+    assert torch.allclose(model.output(x, u)[:, 0], expected)
+    assert model.equation() == "Oscillator y -> y + c_u_x*u*x + c_v*v + c_1*1"
+    assert model.effects["discovered"].expression() == "0.3*u*x - 0.1*v + 0.05"
+    model.assign(**{"discovered.gain": 0.0})  # the strength switches it off
+    assert torch.allclose(model.output(x, u), base.output(x, u))
+
+
+def test_an_output_term_on_a_physics_with_two_outputs_is_refused():
+    from two_mass import TwoMass
+
+    with pytest.raises(TypeError, match="add to a single output; TwoMass has 2"):
+        TwoMass() + DiscoveredForce(["x1"], [1.0], equations=["output"])
+
+
 def test_the_config_block_rebuilds_the_same_force():
     force = DiscoveredForce(["tanh(v/eps)", "v*Abs(v)"], [-0.4, 0.1], eps=0.05)
     parser = ArgumentParser()

@@ -1,5 +1,5 @@
-"""The registry of the measured benchmarks: every module of :mod:`torchpaml._leaderboard.entries` that defines a
-``BENCHMARK``, by name. A new benchmark is one such file, its experiment script and its data."""
+"""The registry of the measured benchmarks: every module of :mod:`torchpaml._leaderboard.entries`, each of which
+defines one ``BENCHMARK``, by name. A new benchmark is one such file, its experiment script and its data."""
 
 from __future__ import annotations
 
@@ -16,9 +16,11 @@ __all__ = ["BENCHMARKS", "benchmark"]
 def _collect() -> dict[str, Benchmark]:
     found = {}
     for info in sorted(pkgutil.iter_modules(entries.__path__), key=lambda info: info.name):
-        defined = getattr(importlib.import_module(f"{entries.__name__}.{info.name}"), "BENCHMARK", None)
-        if isinstance(defined, Benchmark):
-            found[defined.name] = defined
+        module = importlib.import_module(f"{entries.__name__}.{info.name}")
+        if not isinstance(vars(module).get("BENCHMARK"), Benchmark):
+            raise ConfigurationError(f"{module.__name__} defines no BENCHMARK = Benchmark(...): every file of "
+                                     f"{entries.__name__} is one benchmark")
+        found[module.BENCHMARK.name] = module.BENCHMARK
     return found
 
 

@@ -143,6 +143,8 @@ class ComposedModel(AbstractPhysics):
         y = self.base.output(x, self._mapped(u, own)).movedim(0, -1)  # batch last: parameters batched as (rows,)
         for name, effect in self.effects.items():
             seen = {"u": u.movedim(0, -1)} if effect.reads_input else {}
+            if effect.reads_state:
+                seen |= {"x": x.movedim(0, -1), "physics": self.base}
             y = effect.output_map(y, *(z.movedim(0, -1) for z in own[name]), **seen)
         return y.movedim(-1, 0)
 

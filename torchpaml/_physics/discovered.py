@@ -1,9 +1,11 @@
-r"""A force or rate found by discovery, as a first-class effect: $R_e = g \sum_{i:\,e_i = e} c_i\,\theta_i(z)$.
+r"""A force, rate or output term found by discovery, as a first-class effect: $R_e = g \sum_{i:\,e_i = e} c_i\,\theta_i(z)$.
 
 Each term $\theta_i$ (a sympy string over the physics' variables $z$, :mod:`~torchpaml._physics.terms`)
 adds, times its coefficient $c_i$ and the gain $g$, to the rate of its equation $e_i$: the
 acceleration of second-order physics (variables ``x``, ``v``, ``u``), or a named state's equation of
-any other physics (variables its ``state_names`` and ``u``).
+any other physics (variables its ``state_names`` and ``u``); or, with the equation ``"output"``, to the output of a
+physics with one output, $y = h(x, u) + g \sum_{i:\,e_i = \text{output}} c_i\,\theta_i(x, u)$: a closed form of the
+output map.
 
 Parameters: ``gain`` $g$ (the strength: at 0 the effect is off; fixed at 1 unless asked), one
 coefficient per term, ``c_<term>`` (``c_v3`` for ``v**3``, ``c_u_x2`` for ``u*x**2``,
@@ -31,9 +33,12 @@ from torchpaml._physics.base import AbstractPhysics
 from torchpaml._errors import ConfigurationError
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effects import AbstractEffect
-from torchpaml._physics.terms import compile_term, input_values, state_columns, variables_of
+from torchpaml._physics.terms import compile_term, input_values, input_variables, state_columns, variables_of
 
-__all__ = ["DiscoveredForce"]
+__all__ = ["OUTPUT", "DiscoveredForce"]
+
+#: The equation of a term that adds to the output (:class:`DiscoveredForce`).
+OUTPUT = "output"
 
 def _slug(text: str) -> str:
     """A parameter-name fragment of a term: ``"x**2*tanh(v/eps)"`` -> ``"x2_tanh_v_eps"``."""
@@ -47,7 +52,7 @@ class DiscoveredForce(AbstractEffect):
         terms: the terms $\theta_i$, sympy strings, e.g. ``["v**3", "x**2*tanh(v/eps)"]``.
         coefficients: $c_i$, one per term (default 0).
         equations: the equation of each term (default ``"acceleration"``: second-order physics);
-            a state name of other physics.
+            a state name of other physics; ``"output"``: the term adds to the output.
         widths: the starting value of each width symbol the terms use, ``{"eps": 0.05}`` (default 0.01).
         gain: $g$, the strength.
         learn: learnable parameters; default the coefficients and the widths.
@@ -67,8 +72,9 @@ class DiscoveredForce(AbstractEffect):
             raise ConfigurationError(f"DiscoveredForce needs one coefficient and one equation per term: {len(terms)} terms, "
                              f"{len(coefficients)} coefficients, {len(equations)} equations")
         self.equations = equations
-        mechanical = set(equations) <= {"acceleration"}
-        compiled = [compile_term(t, ("x", "v", "u") if mechanical else None) for t in terms]
+        self.reads_input = self.reads_state = OUTPUT in equations  # an output term reads the states and inputs
+        mechanical = set(equations) <= {"acceleration", OUTPUT}  # its parameters are named by their terms alone
+        compiled = [compile_term(t, ("x", "v", "u") if "acceleration" in equations else None) for t in terms]
         self.terms = [c.text for c in compiled]
         self._compiled = compiled
         pairs = list(zip(self.equations, self.terms, strict=True))
@@ -84,12 +90,17 @@ class DiscoveredForce(AbstractEffect):
                        for w in self.width_names]
         default = [*self.parameter_names, *self.width_names]
         register_parameters(self, parameters, default if learn is None else learn)
-        self.equation = "+ " + (" + ".join(f"{n}*{t}" for n, t in zip(self.parameter_names, self.terms, strict=True))
-                                or "0")
+        written = {equation: [f"{n}*{t}" for n, t, e in zip(self.parameter_names, self.terms, equations, strict=True)
+                              if (e == OUTPUT) == (equation == OUTPUT)] for equation in ("rate", OUTPUT)}
+        self.equation = " ".join([*(["+ " + (" + ".join(written["rate"]) or "0")] if written["rate"] or not
+                                    written[OUTPUT] else []),
+                                  *(["y -> y + " + " + ".join(written[OUTPUT])] if written[OUTPUT] else [])])
 
     def applies_to(self, physics: AbstractPhysics) -> str | None:
         variables, equations = variables_of(physics)
-        wrong = sorted({e for e in self.equations if e not in equations})
+        wrong = sorted({e for e in self.equations if e not in equations and e != OUTPUT})
+        if OUTPUT in self.equations and physics.output_dim != 1:
+            return f"its output terms add to a single output; {physics.display_name} has {physics.output_dim}"
         if wrong:
             return (f"its terms add to the equation(s) {wrong}, but {physics.display_name}'s equations are "
                     f"{list(equations)}")
@@ -106,11 +117,27 @@ class DiscoveredForce(AbstractEffect):
         values.update({w: getattr(self, w) for w in self.width_names})
         totals: dict[str, torch.Tensor] = {}
         for name, equation, term in zip(self.parameter_names, self.equations, self._compiled, strict=True):
+            if equation == OUTPUT:
+                continue
             value = getattr(self, name) * term.evaluate(values)
             totals[equation] = totals.get(equation, 0.0) + value
         if "acceleration" in equations:
             totals = {physics.state_names[1]: totals["acceleration"]} if totals else {}
         return self.on_state(physics, x, {k: self.gain * v for k, v in totals.items()})
+
+    def output_map(self, y, z=None, u=None, x=None, physics=None):
+        """``y`` plus the output terms, read in the layout of ``y`` (..., n_y, batch) from the base ``physics``' states
+        ``x`` (..., n, batch) and inputs ``u`` (..., n_u, batch)."""
+        if OUTPUT not in self.equations:
+            return y
+        values = {name: x[..., i, :] for name, i in state_columns(physics).items()}
+        values.update({name: u[..., i, :] for i, name in enumerate(input_variables(physics))})
+        values.update({w: getattr(self, w) for w in self.width_names})
+        total = torch.zeros_like(y[..., 0, :])
+        for name, equation, term in zip(self.parameter_names, self.equations, self._compiled, strict=True):
+            if equation == OUTPUT:
+                total = total + getattr(self, name) * term.evaluate(values)
+        return y + (self.gain * total)[..., None, :]
 
     def values(self) -> dict[str, float]:
         """Every parameter's value, ``{name: float}``."""

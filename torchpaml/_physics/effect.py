@@ -68,6 +68,9 @@ class AbstractEffect(Rebuildable, nn.Module):
     #: whether :meth:`output_map` also reads the measured input, as ``output_map(y, u=u)`` (a path from the input
     #: straight to the sensor); ``u`` then comes in the layout of ``y``, (..., n_u, batch)
     reads_input: bool = False
+    #: whether :meth:`output_map` also reads the base physics' states, as ``output_map(y, x=x, physics=base)`` (an
+    #: output map $h(x, u)$ of the states); ``x`` then comes in the layout of ``y``, (..., n_state, batch)
+    reads_state: bool = False
     #: the velocity state a force acts on (:meth:`on`); ``None``: the physics' only degree of freedom
     acts_on: str | None = None
 

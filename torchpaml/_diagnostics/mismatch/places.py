@@ -8,8 +8,9 @@ actuator dynamics         a linear state on the input side                    in
 sensor dynamics           a linear state on the output side                   sensor_lag
 extra mode                one more linear mode of the device (a pole pair)    extra_mode
 output map                a static map of the output, y = h(x, u) (a          quadratic_sensor, magnitude_sensor,
-                          calibration curve, a sensor that reads only the     output_saturation, feedthrough
-                          magnitude, a direct path from the input)
+                          calibration curve, a sensor that reads only the     output_saturation, feedthrough, and
+                          magnitude, a direct path from the input)            the closed form of the output's
+                                                                              residual over the states and inputs
 input map                 a static map of the input                           quadratic_input, input_saturation,
                                                                               dead_zone
 force                     a force on each degree of freedom, a closed form    the library's forces, and the
@@ -24,7 +25,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["FORCE", "INITIAL_STATE", "PLACES", "Place"]
+__all__ = ["FORCE", "INITIAL_STATE", "OUTPUT_MAP", "PLACES", "Place"]
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,8 @@ class Place:
     effects: tuple[str, ...]
 
 
+#: The place of a static map of the output: its library effects, and the closed form of the output's residual.
+OUTPUT_MAP = "output map"
 #: The place of a force on a degree of freedom: the library's forces, and the discovery's closed form.
 FORCE = "force"
 #: The place that is not an extension: the validation records' initial states.
@@ -47,7 +50,7 @@ PLACES = (
     Place("actuator dynamics", "a linear state on the input side", ("input_lag",)),
     Place("sensor dynamics", "a linear state on the output side", ("sensor_lag",)),
     Place("extra mode", "one more linear mode (a pole pair)", ("extra_mode",)),
-    Place("output map", "a static map of the output, y = h(x, u): a calibration curve, a magnitude-only sensor, a "
+    Place(OUTPUT_MAP, "a static map of the output, y = h(x, u): a calibration curve, a magnitude-only sensor, a "
                         "direct path from the input", ("quadratic_sensor", "magnitude_sensor", "output_saturation",
                                                         "feedthrough")),
     Place("input map", "a static map of the input", ("quadratic_input", "input_saturation", "dead_zone")),

@@ -5,7 +5,9 @@ Where no library candidate passes the rule and the model is not complete at the 
 physics there (and apply to it), the ``shortlist`` ones with the highest first-order scores are refitted with the physics on the
 training records and scored on validation, as the ranking refits its shortlist (:class:`~torchpaml.Ranker`: its
 probe strength, iteration limit and refit budget); an effect the ranking refitted already is taken from its ranking.
-The force's place also takes the discovery's closed form where the discovery ran; the initial state's place scores
+The force's place also takes the discovery's closed form where the discovery ran, and the output map's place the
+closed form of the output's residual over the states and inputs
+(:func:`~torchpaml._diagnostics.discovery.output_map.output_closed_form`); the initial state's place scores
 the model with each validation record's initial state estimated, and says where in time the error sits
 (:mod:`~torchpaml._diagnostics.mismatch.in_time`). Each place's *validation gain* is the share by which its
 extension lowers the model's validation mismatch; the table names the place with the largest gain
@@ -20,11 +22,13 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from torchpaml._budget import Budget
+from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Record
 from torchpaml._diagnostics.discovery.result import Discovery
 from torchpaml._diagnostics.mismatch.in_time import error_in_time
-from torchpaml._diagnostics.mismatch.places import FORCE, INITIAL_STATE, PLACES, Place
+from torchpaml._diagnostics.discovery.output_map import NAME as CLOSED_FORM
+from torchpaml._diagnostics.discovery.output_map import output_closed_form
+from torchpaml._diagnostics.mismatch.places import FORCE, INITIAL_STATE, OUTPUT_MAP, PLACES, Place
 from torchpaml._diagnostics.mismatch.result import MismatchProbes, ProbeResult, ranked
 from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE
 from torchpaml._diagnostics.ranking.ranker import Ranker
@@ -32,7 +36,7 @@ from torchpaml._diagnostics.ranking.refits import Refits
 from torchpaml._diagnostics.ranking.scoring import as_records, score_model
 from torchpaml._diagnostics.ranking.steps import applicable, placed, scored
 from torchpaml._diagnostics.results import EffectEvidence, Ranking
-from torchpaml._errors import ConfigurationError
+from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._fit.initial_state import Estimate
 from torchpaml._physics.effects import EFFECTS
 
@@ -100,8 +104,10 @@ class Prober:
             tried = [refitted[name] for name in names if name in refitted]
             if not tried:
                 tried = _refit_best([new[name] for name in names if name in new], extended, refits, ranker.shortlist)
-            rows.append(_row(place, tried, score.nrmse_validation, discovery if place.name == FORCE else None,
-                             model.display_name))
+            extras = _discovered(discovery) if place.name == FORCE else \
+                self._output_form(ranking, train, validation, ranker, template) if place.name == OUTPUT_MAP else []
+            rows.append(_row(place, tried, score.nrmse_validation, extras, model.display_name,
+                             discovered=discovery is not None))
         probes.rows = ranked(rows, [place.name for place in self.places])
         return probes
 
@@ -117,6 +123,23 @@ class Prober:
             return applicable(model, effects)[0]
         except ConfigurationError:  # none of them applies
             return []
+
+    @staticmethod
+    def _output_form(ranking: Ranking, train: list[Record], validation: list[Record], ranker: Ranker,
+                     template: Budget) -> list[tuple]:
+        """The closed form of the output map's residual (:func:`~torchpaml._diagnostics.discovery.output_map.output_closed_form`),
+        as an option of the output map's place; none where the regression keeps no term or its refit fails."""
+        try:
+            found = output_closed_form(ranking.baseline, train, validation, ranking.rule, ranking.initial_state,
+                                       max_nfev=ranker.max_nfev, budget=template.restarted("the output map's closed form"))
+        except (OverBudget, ResolutionError, SimulationError) as error:
+            log.info("output map: no closed form (%s)", error)
+            return []
+        if found is None:
+            return []
+        form = found.model.effects[CLOSED_FORM].expression()
+        return [(found, f"y + {form}", "the closed form of the output map's residual (a regression on the "
+                                       "discovery's terms, refitted)")]
 
     @staticmethod
     def _initial_state(place: Place, ranking: Ranking, validation: list[Record], probes: MismatchProbes
@@ -143,17 +166,22 @@ def _refit_best(entries: list[EffectEvidence], extended: dict[str, tuple], refit
     return best
 
 
-def _row(place: Place, tried: list[EffectEvidence], validation: float, discovery: Discovery | None,
-         model: str) -> ProbeResult:
-    """The place's row: the best of its refitted effects (and of the discovery's closed form, for the force)."""
-    done = [e for e in tried if e.refit is not None]
-    options = [(e.refit, e.effect, _parameters(e)) for e in done]
-    if discovery is not None and discovery.discovered is not None:
-        options.append((discovery.discovered, discovery.text, "the discovery's closed form"))
+def _discovered(discovery: Discovery | None) -> list[tuple]:
+    """The discovery's closed form, as an option of the force's place; none where it found none."""
+    if discovery is None or discovery.discovered is None:
+        return []
+    return [(discovery.discovered, discovery.text, "the discovery's closed form")]
+
+
+def _row(place: Place, tried: list[EffectEvidence], validation: float, extras: list[tuple], model: str,
+         discovered: bool) -> ProbeResult:
+    """The place's row: the best of its refitted effects and of ``extras`` (``(score, fitted, note)``: the discovery's
+    closed form for the force, the output map's for the output map)."""
+    options = [(e.refit, e.effect, _parameters(e)) for e in tried if e.refit is not None] + extras
     if not options:
         why = "; ".join(f"{e.effect}: {e.failure or e.refit_reason}" for e in tried) or \
             f"no library effect of this place applies to {model}"
-        if place.name == FORCE and discovery is None:
+        if place.name == FORCE and not discovered:
             why += "; the discovery (--discover) learns a force of any form"
         return ProbeResult(place.name, place.extension, note=why)
     best, name, note = min(options, key=lambda option: option[0].nrmse_validation)
