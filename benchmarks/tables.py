@@ -226,24 +226,22 @@ def limits(results: Path) -> str | None:
     return "\n".join(lines) if len(lines) > 2 else None
 
 
-def probes(result: dict) -> str:
-    """What the diagnosis' probes tried on the benchmark's final grey box: each place's extension, its validation
-    gain, its test figure, and whether it is kept."""
-    unit = result["protocol"]["unit"]
-    splits = result["protocol"]["test"]
-    rows = result.get("probes") or []
-    if not rows:
-        return "No probe ran: the final grey box is complete at the noise level."
-    lines = ["| place | extension fitted | validation gain | " + " | ".join(splits) + " | kept |",
+def tried(result: dict) -> str:
+    """What we tried on the benchmark: every hypothesis the diagnosis fitted (each rung's refitted candidates, then the
+    probes of where the final grey box's mismatch points), its validation gain, its test figures, and whether it is
+    kept in the final grey box."""
+    unit, splits = result["protocol"]["unit"], result["protocol"]["test"]
+    lines = ["| stage | hypothesis | validation gain | " + " | ".join(splits) + " | kept |",
              "|---|---|---|" + "---|" * len(splits) + "---|"]
-    for row in rows:
+    for row in result["tried"]:
         gain = "—" if row["validation_gain"] is None else f"{100 * row['validation_gain']:.1f} %"
-        figures = [("—" if row["rmse"] is None or row["rmse"].get(k) is None else f"{row['rmse'][k]:.3g} {unit}")
-                   for k in splits]
-        fitted = row["fitted"] or f"— ({row['note'][:90]})"
-        lines.append(f"| {row['place']} | {fitted} | {gain} | " + " | ".join(figures)
-                     + f" | {'yes' if row['kept'] else 'no'} |")
-    return "\n".join(lines)
+        figures = ["—" if row["rmse"] is None else _figure(row["rmse"][k], unit) for k in splits]
+        stage = row["stage"] if row["place"] is None else f"probe: {row['place']}"
+        kept = "yes" if row["kept"] else "no (the place the probes name)" if row["named"] else "no"
+        lines.append(f"| {stage} | {row['hypothesis']} | {gain} | " + " | ".join(figures) + f" | {kept} |")
+    probed = any(row["stage"] == "probe" for row in result["tried"])
+    return "\n".join(lines) + ("" if probed else "\n\nNo probe ran: the final grey box is complete at the noise "
+                                                  "level.")
 
 
 TABLES: dict[str, tuple[str, Callable]] = {
@@ -256,10 +254,10 @@ TABLES: dict[str, tuple[str, Callable]] = {
     "boucwen": ("boucwen/boucwen.json", boucwen),
     "emps": ("emps/emps.json", emps),
     "worst_case": ("bench_worst_case.json", worst_case),
-    "silverbox_probes": ("silverbox/silverbox.json", probes),
-    "tanks_probes": ("cascaded_tanks/cascaded_tanks.json", probes),
-    "emps_probes": ("emps/emps.json", probes),
-    "boucwen_probes": ("boucwen/boucwen.json", probes),
+    "silverbox_tried": ("silverbox/silverbox.json", tried),
+    "tanks_tried": ("cascaded_tanks/cascaded_tanks.json", tried),
+    "emps_tried": ("emps/emps.json", tried),
+    "boucwen_tried": ("boucwen/boucwen.json", tried),
 }
 
 

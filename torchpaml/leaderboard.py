@@ -17,10 +17,10 @@ from torchpaml._leaderboard.benchmark import Benchmark, Published
 from torchpaml._leaderboard.protocols import noise_floor, periodic_twice, with_effect
 from torchpaml._leaderboard.registry import BENCHMARKS, benchmark
 from torchpaml._leaderboard.result import (LIMITS, SCHEMA_VERSION, arguments, goal_entry, hybrid_entry,
-                                           ladder_entries, probe_entries, write_result)
+                                           ladder_entries, tried_entries, write_result)
 
 __all__ = ["BENCHMARKS", "Benchmark", "LIMITS", "Published", "SCHEMA_VERSION", "arguments", "benchmark", "goal_entry",
-           "hybrid_entry", "ladder_entries", "noise_floor", "periodic_twice", "probe_entries", "with_effect",
+           "hybrid_entry", "ladder_entries", "noise_floor", "periodic_twice", "tried_entries", "with_effect",
            "write_result"]
 
 

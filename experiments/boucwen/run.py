@@ -32,7 +32,7 @@ from mass_spring_damper import frequency_response_start  # the user's physics, b
 from torchpaml import Estimate, Ranker, Record, default_effects, diagnose, simulate_record, write_report
 from torchpaml.cli.progress import progress_lines
 from torchpaml.leaderboard import (SCHEMA_VERSION, arguments, benchmark, goal_entry, hybrid_entry, ladder_entries,
-                                   probe_entries, write_result)
+                                   tried_entries, write_result)
 from torchpaml.report import diagnosis_to_dict
 
 BENCHMARK = benchmark("boucwen")
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> dict:
     result = {"schema_version": SCHEMA_VERSION, "benchmark": BENCHMARK.name, "protocol": BENCHMARK.protocol(),
               "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid,
               "hybrids": diagnosis_to_dict(diagnosis)["hybrid"], "goal": goal(final, record, models, hybrid),
-              "probes": probe_entries(BENCHMARK, diagnosis.probes, tests), "seconds": time.perf_counter() - start}
+              "tried": tried_entries(BENCHMARK, diagnosis, tests), "seconds": time.perf_counter() - start}
     return write_result(args.out, result, diagnosis.verdict)
 
 

@@ -40,7 +40,7 @@ from torchpaml import (DeadZone, Discoverer, Estimate, ModelScore, OutputSaturat
                        simulate_record, write_report)
 from torchpaml.cli.progress import progress_lines
 from torchpaml.leaderboard import (SCHEMA_VERSION, benchmark, goal_entry, hybrid_entry, ladder_entries,
-                                   probe_entries, with_effect, write_result)
+                                   tried_entries, with_effect, write_result)
 from torchpaml.report import diagnosis_to_dict, discovery_to_dict, ranking_table
 
 BENCHMARK = benchmark("cascaded_tanks")
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> dict:
               "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid,
               "hybrids": diagnosis_to_dict(diagnosis)["hybrid"], "free_spill": spill,
               "goal": goal(models, hybrid, spill, validation_rmse),
-              "probes": probe_entries(BENCHMARK, diagnosis.probes, tests), "seconds": time.perf_counter() - start}
+              "tried": tried_entries(BENCHMARK, diagnosis, tests), "seconds": time.perf_counter() - start}
     if args.discover:
         found = diagnose(physics, [], train, validation, initial_state=Estimate(), discovery=Discoverer(),
                          prober=None).discovery

@@ -36,7 +36,7 @@ from rigid_body import RigidBody  # the user's physics, beside this script
 from torchpaml import ConstantForce, CoulombFriction, Estimate, QuadraticDamping, Ranker, Record, diagnose, write_report
 from torchpaml.cli.progress import progress_lines
 from torchpaml.leaderboard import (SCHEMA_VERSION, arguments, benchmark, goal_entry, hybrid_entry, ladder_entries,
-                                   probe_entries, write_result)
+                                   tried_entries, write_result)
 
 BENCHMARK = benchmark("emps")
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / BENCHMARK.folder
@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> dict:
     result = {"schema_version": SCHEMA_VERSION, "benchmark": BENCHMARK.name, "protocol": BENCHMARK.protocol(),
               "found": diagnosis.ladder.added, "friction": friction(final.parameters), "models": models,
               "hybrid": hybrid, "goal": goal(final, [train, validation], models, hybrid),
-              "probes": probe_entries(BENCHMARK, diagnosis.probes, tests)}
+              "tried": tried_entries(BENCHMARK, diagnosis, tests)}
     result["seconds"] = time.perf_counter() - start
     return write_result(args.out, result, diagnosis.verdict)
 

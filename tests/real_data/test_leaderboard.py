@@ -37,10 +37,11 @@ def check_contract(result: dict, benchmark: str, splits: list[str]) -> None:
     assert goal["figure"] == counted["rmse"][goal["split"]] and goal["met"] == (goal["figure"] <= goal["value"])
     assert goal["limit"]["kind"] in leaderboard.LIMITS and goal["limit"]["explanation"]
     assert goal["limit"]["evidence"] and all(math.isfinite(v) for v in goal["limit"]["evidence"].values())
-    for row in result["probes"]:  # where the final grey box's mismatch points, each extension scored on test
-        assert set(row) == {"place", "fitted", "validation_gain", "rmse", "kept", "note"}
-        assert (row["rmse"] is None) == (row["fitted"] is None) == (row["validation_gain"] is None)
-    assert sum(row["kept"] for row in result["probes"]) <= 1
+    tried = result["tried"]  # every hypothesis fitted, the ladder's refits then the probes, each scored on test
+    assert all(set(row) == {"stage", "place", "hypothesis", "validation_gain", "rmse", "kept", "named"} for row in tried)
+    assert [row["hypothesis"] for row in tried if row["kept"]] == result["found"]
+    assert all((row["rmse"] is None) == (row["validation_gain"] is None) for row in tried)
+    assert sum(row["named"] for row in tried) <= 1 and not any(row["kept"] for row in tried if row["stage"] == "probe")
     assert "Infinity" not in json.dumps(result) and "NaN" not in json.dumps(result)
 
 

@@ -5,7 +5,7 @@
      "models": [{"model", "equation", "parameters", "uncertainty", "rmse": {<test split>: value}}],
      "hybrid": {"model", "accepted", "rmse": {<test split>: value or null}, "reason"},
      "goal": {"value", "split", "figure", "met", "limit": {"kind", "evidence", "explanation"}},
-     "probes": [{"place", "fitted", "validation_gain", "rmse": {<test split>: value}, "kept", "note"}],
+     "tried": [{"stage", "place", "hypothesis", "validation_gain", "rmse": {<test split>: value}, "kept", "named"}],
      "seconds"}
 
 ``models`` goes from the linear physics to the final grey box; ``hybrid`` is the final model with the orthogonal
@@ -14,9 +14,9 @@ residual of the paper on top (:func:`~torchpaml.analysis.hybrid_residual`, fitte
 ``null`` where a test input leaves the residual's domain. ``goal`` holds the benchmark's goal on its headline split
 (:func:`goal_entry`): the figure that counts (the hybrid's where its alarm accepts it, else the final grey box's),
 whether it meets the goal, and what limits it: one of :data:`LIMITS`, with the measured numbers that show it.
-``probes`` holds the diagnosis' probes of where the final grey box's mismatch points (:func:`probe_entries`): each
-place's extension, its validation gain, its test figures, and whether it is kept (the place the probes name); empty
-where the final grey box is complete at the noise level. Every figure is :meth:`Benchmark.score`'s.
+``tried`` holds every hypothesis the diagnosis fitted (:func:`tried_entries`): each rung's refitted candidates, then
+the probes of where the final grey box's mismatch points, each with its validation gain, its test figures, whether
+it is kept in the final grey box, and whether the probes name its place. Every figure is :meth:`Benchmark.score`'s.
 """
 
 from __future__ import annotations
@@ -29,7 +29,6 @@ import torch
 
 from torchpaml._diagnostics.analysis.adequacy import Adequacy
 from torchpaml._diagnostics.diagnosis import Diagnosis, hybrid_residual
-from torchpaml._diagnostics.mismatch.result import MismatchProbes
 from torchpaml._diagnostics.results import ModelScore
 from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
@@ -37,7 +36,7 @@ from torchpaml._errors import DomainError
 from torchpaml._leaderboard.benchmark import Benchmark
 from torchpaml._render.schema import diagnosis_to_dict
 
-__all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "ladder_entries", "probe_entries",
+__all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "ladder_entries", "tried_entries",
            "write_result"]
 
 #: The version of the leaderboard fields; a change of their meaning raises it.
@@ -108,16 +107,27 @@ def goal_entry(benchmark: Benchmark, models: list[dict], hybrid: dict, limit: st
             "limit": {"kind": limit, "evidence": evidence, "explanation": explanation}}
 
 
-def probe_entries(benchmark: Benchmark, probes: MismatchProbes | None, tests: dict[str, Record]) -> list[dict]:
-    """The probes' rows (:class:`~torchpaml.MismatchProbes`) as leaderboard rows, each extended model scored on
-    ``tests`` (:meth:`Benchmark.scores`); ``kept``: the place the probes name. The places were chosen on the
-    validation records; the test figures are reported, not chosen on."""
-    if probes is None:
-        return []
-    best = probes.best
-    return [{"place": row.place, "fitted": row.fitted, "validation_gain": row.gain,
-             "rmse": None if row.score is None else benchmark.scores(row.score, tests), "kept": row is best,
-             "note": row.note} for row in probes.rows]
+def tried_entries(benchmark: Benchmark, diagnosis: Diagnosis, tests: dict[str, Record]) -> list[dict]:
+    """Every hypothesis the diagnosis fitted, each scored on ``tests`` (:meth:`Benchmark.scores`): on each rung of the
+    ladder, the candidates it refitted (``stage`` ``"rung N"``), and then the probes of where the final grey box's
+    mismatch points (``stage`` ``"probe"``, with its ``place``); ``validation_gain``: the share by which it lowers
+    its rung's validation mismatch; ``kept``: it is in the final grey box; ``named``: the place the probes name.
+    Every choice was made on the validation records; the test figures are reported, not chosen on."""
+    rows, added = [], diagnosis.ladder.added
+    for rung, ranking in enumerate(diagnosis.ladder.rankings):
+        base = ranking.baseline.nrmse_validation
+        for entry in (e for e in ranking.entries if e.refit is not None):
+            rows.append({"stage": f"rung {rung + 1}", "place": None, "hypothesis": entry.effect,
+                         "validation_gain": 1.0 - entry.refit.nrmse_validation / base,
+                         "rmse": benchmark.scores(entry.refit, tests),
+                         "kept": rung < len(added) and entry.effect == added[rung], "named": False})
+    probes = diagnosis.probes
+    best = None if probes is None else probes.best
+    for row in [] if probes is None else probes.rows:
+        rows.append({"stage": "probe", "place": row.place, "hypothesis": row.fitted or f"— ({row.note.split(';')[0]})",
+                     "validation_gain": row.gain, "rmse": None if row.score is None else benchmark.scores(row.score, tests),
+                     "kept": False, "named": row is best})
+    return rows
 
 
 def write_result(out: Path, result: dict, verdict: str) -> dict:

@@ -106,8 +106,7 @@ class Prober:
                 tried = _refit_best([new[name] for name in names if name in new], extended, refits, ranker.shortlist)
             extras = _discovered(discovery) if place.name == FORCE else \
                 self._output_form(ranking, train, validation, ranker, template) if place.name == OUTPUT_MAP else []
-            rows.append(_row(place, tried, score.nrmse_validation, extras, model.display_name,
-                             discovered=discovery is not None))
+            rows.append(_row(place, tried, score.nrmse_validation, extras, discovered=discovery is not None))
         probes.rows = ranked(rows, [place.name for place in self.places])
         return probes
 
@@ -173,14 +172,14 @@ def _discovered(discovery: Discovery | None) -> list[tuple]:
     return [(discovery.discovered, discovery.text, "the discovery's closed form")]
 
 
-def _row(place: Place, tried: list[EffectEvidence], validation: float, extras: list[tuple], model: str,
+def _row(place: Place, tried: list[EffectEvidence], validation: float, extras: list[tuple],
          discovered: bool) -> ProbeResult:
     """The place's row: the best of its refitted effects and of ``extras`` (``(score, fitted, note)``: the discovery's
     closed form for the force, the output map's for the output map)."""
     options = [(e.refit, e.effect, _parameters(e)) for e in tried if e.refit is not None] + extras
     if not options:
         why = "; ".join(f"{e.effect}: {e.failure or e.refit_reason}" for e in tried) or \
-            f"no library effect of this place applies to {model}"
+            "no library effect of this place applies"
         if place.name == FORCE and not discovered:
             why += "; the discovery (--discover) learns a force of any form"
         return ProbeResult(place.name, place.extension, note=why)
