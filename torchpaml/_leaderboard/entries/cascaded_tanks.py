@@ -12,5 +12,5 @@ BENCHMARK = Benchmark(
                          "Beintema, Schoukens, Tóth, ICLR 2023", "black box"),
                Published("0.18 V", "grey box of Rogers, Holmes, Cross, Worden (2017)",
                          "as quoted by Forgione & Piga 2021", "grey box")),
-    experiment="experiments/cascaded_tanks/run.py", arguments=("--discover",),
+    experiment="experiments/cascaded_tanks/run.py",
 )
