@@ -13,7 +13,7 @@ from the state ``start`` says, over the samples after the first $n_0$ = ``init_w
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 import torch
@@ -81,7 +81,6 @@ class Benchmark:
     steady_state: tuple[str, ...] = ()
     arguments: tuple[str, ...] = ()
     hold: str | None = None
-    notes: str = field(default="", compare=False)
 
     def __post_init__(self):
         if self.goal_split not in self.tests or not set(self.steady_state) <= set(self.tests):

@@ -52,7 +52,8 @@ def output_closed_form(score: ModelScore, train: Sequence[Record], validation: S
     if physics.output_dim != 1:
         return None
     variables, _ = variables_of(physics)
-    terms = [t for t in library.build(physics) if not compile_term(t, variables).widths]
+    compiled = [c for c in (compile_term(t, variables) for t in library.build(physics)) if not c.widths]
+    terms = [c.text for c in compiled]
     columns, residual = [], []
     with torch.no_grad():
         for record, x0 in zip(train, score.train_states, strict=True):
@@ -60,8 +61,7 @@ def output_closed_form(score: ModelScore, train: Sequence[Record], validation: S
             residual.append((record.y - physics.output(states, record.u))[:, 0])
             values = {name: states[:, i] for name, i in state_columns(physics).items()}
             values.update(input_values(physics, record.u))
-            columns.append(torch.stack([compile_term(t, variables).evaluate(values) * torch.ones_like(states[:, 0])
-                                        for t in terms], dim=1))
+            columns.append(torch.stack([c.evaluate(values) * torch.ones_like(states[:, 0]) for c in compiled], dim=1))
     A, r = torch.cat(columns), torch.cat(residual)
     norms = A.norm(dim=0)
     usable = norms > 0
