@@ -137,7 +137,7 @@ class Prober:
         if found is None:
             return []
         form = found.model.effects[CLOSED_FORM].expression()
-        return [(found, f"y + {form}", "the closed form of the output map's residual (a regression on the "
+        return [(found, f"y + {form}".replace("+ -", "- "), "the closed form of the output map's residual (a regression on the "
                                        "discovery's terms, refitted)")]
 
     @staticmethod
