@@ -19,11 +19,11 @@ from test_hidden_effects import physics, records, truth
 pytestmark = pytest.mark.slow  # an end-to-end run: the slow lane
 
 #: the device's missing part -> (the place the probes must name, its strength, its other parameters). The sensor
-#: reads the magnitude for half its reading (m = 0.5): a sensor that reads only the magnitude (m = 1) leaves the fitted
-#: linear physics almost no gain, and no first-order direction starts a refit there (docs: the probes' limits).
+#: reads only the magnitude (m = 1): the fitted linear physics has almost no gain, and the probes find it from its far
+#: strength on the physics alone (``AbstractEffect.far_strength``).
 DEVICES = {
     "sensor_lag": ("sensor dynamics", 0.3, {}),
-    "magnitude_sensor": ("output map", 0.5, {}),
+    "magnitude_sensor": ("output map", 1.0, {}),
     "quadratic_input": ("input map", 0.3, {}),
     "extra_mode": ("extra mode", 12.8, {"omega_m": 8.0, "zeta_m": 0.1}),
     "latent_state": ("latent state", 0.5, {"lam": 0.3}),

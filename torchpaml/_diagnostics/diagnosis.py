@@ -379,7 +379,7 @@ def diagnose(
                                                               complete=hybrids[-1].adequacy.complete)
     probes = None if prober is None else prober.probe(ladder.rankings[-1], train, validation, ranker=ranker,
                                                       deadline=deadline, discovery=found,
-                                                      complete=hybrids[-1].adequacy.complete)
+                                                      complete=hybrids[-1].adequacy.complete, first=base)
     first = channels[0]
     return Diagnosis(ladder, first.residuals, first.by_input, first.by_output, hybrids, validation, found, channels,
                      probes)

@@ -19,7 +19,7 @@ from typing import Literal
 import torch
 
 from torchpaml._data import Record
-from torchpaml._data.simulation import simulate_record
+from torchpaml._data.simulation import record_states, simulate_record
 from torchpaml._diagnostics.results import ModelScore
 from torchpaml._fit.physics_fit import estimate_initial_state
 from torchpaml._leaderboard.protocols import periodic_twice
@@ -61,6 +61,8 @@ class Benchmark:
             leaderboard passes it beside ``--out``.
         steady_state: the splits scored in their periodic steady state.
         hold: how the input moved between samples (``None``: the file's metadata, else ``foh``).
+        velocity: the model's state that is the output's rate, scored beside the output (module docstring);
+            ``None``: none.
     """
 
     name: str
@@ -81,6 +83,7 @@ class Benchmark:
     steady_state: tuple[str, ...] = ()
     arguments: tuple[str, ...] = ()
     hold: str | None = None
+    velocity: str | None = None
 
     def __post_init__(self):
         if self.goal_split not in self.tests or not set(self.steady_state) <= set(self.tests):
@@ -116,8 +119,12 @@ class Benchmark:
 
     def metric_of(self, record: Record, y_model: torch.Tensor) -> float:
         """The figure of the model output ``y_model`` (time, n_y) on the prepared ``record``."""
+        return self._rms(record, (record.y - y_model)[:, 0])
+
+    def _rms(self, record: Record, error: torch.Tensor) -> float:
+        """``scale`` times the RMS of ``error`` (time,) over the samples of the prepared ``record`` that are scored."""
         first = len(record.t) // 2 if record.name in self.steady_state else self.init_window
-        return self.scale * float((record.y - y_model)[first:, 0].square().mean().sqrt())
+        return self.scale * float(error[first:].square().mean().sqrt())
 
     def score(self, model, record: Record, *, solver: Solver | None = None,
               train_state: torch.Tensor | None = None) -> float:
@@ -127,9 +134,27 @@ class Benchmark:
             y = simulate_record(model, prepared, self.start_of(model, prepared, solver, train_state), solver=solver)[0]
         return self.metric_of(prepared, y)
 
+    def velocity_score(self, model, record: Record, *, solver: Solver | None = None,
+                       train_state: torch.Tensor | None = None) -> float:
+        r"""The RMSE, in ``unit``/s, of the state :attr:`velocity` of the fitted ``model``'s free run on the test
+        ``record`` (started as :meth:`score` starts it) against the central differences of the measured output,
+        $\dot y_k \approx (y_{k+1} - y_{k-1}) / (t_{k+1} - t_{k-1})$, over the samples :meth:`score` scores."""
+        if self.velocity is None:
+            raise ConfigurationError(f"{self.name} scores no velocity; name the state (Benchmark(velocity=...))")
+        prepared = self.prepared(record)
+        with torch.no_grad():
+            states = record_states(model, prepared, self.start_of(model, prepared, solver, train_state), solver)
+        measured = torch.gradient(prepared.y[:, 0], spacing=(prepared.t,))[0]
+        velocity = states[:, model.state_names.index(self.velocity)]
+        return self._rms(prepared, measured - velocity)
+
     def scores(self, step: ModelScore, tests: dict[str, Record]) -> dict[str, float]:
         """:meth:`score` of a scored model (its model, solver and training records' initial states) on every test
-        record, by split."""
+        record, by split, and where :attr:`velocity` names a state, :meth:`velocity_score` as ``<split>_velocity``."""
         state = step.train_states[0] if step.train_states else None
-        return {name: self.score(step.model, record, solver=step.solver, train_state=state)
-                for name, record in tests.items()}
+        figures = {name: self.score(step.model, record, solver=step.solver, train_state=state)
+                   for name, record in tests.items()}
+        if self.velocity is not None:
+            figures |= {f"{name}_velocity": self.velocity_score(step.model, record, solver=step.solver,
+                                                                train_state=state) for name, record in tests.items()}
+        return figures

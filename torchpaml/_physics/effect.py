@@ -73,6 +73,11 @@ class AbstractEffect(Rebuildable, nn.Module):
     reads_state: bool = False
     #: the velocity state a force acts on (:meth:`on`); ``None``: the physics' only degree of freedom
     acts_on: str | None = None
+    #: a strength far from 0, at the end of its physical range, from which the probes of where the mismatch points
+    #: also refit the effect on the physics alone (:class:`~torchpaml.Prober`): for an effect whose first-order
+    #: direction at 0 is blind to it, and which the effects fitted in its place hide (a sensor that reads only the
+    #: magnitude leaves the fitted linear physics almost no gain and a constant offset); ``None``: none
+    far_strength: float | None = None
 
     def __deepcopy__(self, memo: dict) -> AbstractEffect:
         """A copy that reads its own parameter values (:func:`~torchpaml._parameters.copied_with_own_parametrizations`)."""

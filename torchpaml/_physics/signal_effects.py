@@ -74,9 +74,14 @@ class SensorLag(AbstractEffect):
 
 class MagnitudeSensor(AbstractEffect):
     r"""A sensor blind to the sign for a share $m$ of its reading, $y = h + m\,(|h| - h)$: at $m = 1$ it reads
-    $|h|$ (a speed counter that does not see the direction). ``m`` (dimensionless, in [0, 1]) is the strength."""
+    $|h|$ (a speed counter that does not see the direction). ``m`` (dimensionless, in [0, 1]) is the strength.
+
+    At $m = 1$ a linear physics fitted to the reading has almost no gain (the magnitude of a response to a zero-mean
+    input hardly correlates with the input), and the first-order direction of $m$ at 0 sees nothing: the probes also
+    refit it from $m = 1$ on the physics alone (``far_strength``)."""
 
     name, equation = "magnitude_sensor", "y -> y + m*(|y| - y)"
+    far_strength = 1.0
 
     def __init__(self, m: float = 0.0, *, learn=("m",)):
         super().__init__()

@@ -9,13 +9,16 @@ The force's place also takes the discovery's closed form where the discovery ran
 closed form of the output's residual over the states and inputs
 (:func:`~torchpaml._diagnostics.discovery.output_map.output_closed_form`); the initial state's place scores
 the model with each validation record's initial state estimated, and says where in time the error sits
-(:mod:`~torchpaml._diagnostics.mismatch.in_time`). Each place's *validation gain* is the share by which its
+(:mod:`~torchpaml._diagnostics.mismatch.in_time`). An effect with a ``far_strength``
+(:attr:`~torchpaml.AbstractEffect.far_strength`, e.g. a sensor that reads only the magnitude) is also refitted from
+it on the first rung's physics, without the effects the ladder fitted in its place. Each place's *validation gain* is the share by which its
 extension lowers the model's validation mismatch; the table names the place with the largest gain
 (:class:`~torchpaml._diagnostics.mismatch.result.MismatchProbes`).
 """
 
 from __future__ import annotations
 
+import copy
 import logging
 import math
 import time
@@ -35,7 +38,7 @@ from torchpaml._diagnostics.ranking.ranker import Ranker
 from torchpaml._diagnostics.ranking.refits import Refits
 from torchpaml._diagnostics.ranking.scoring import as_records, score_model
 from torchpaml._diagnostics.ranking.steps import applicable, placed, scored
-from torchpaml._diagnostics.results import EffectEvidence, Ranking
+from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
 from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._fit.initial_state import Estimate
 from torchpaml._physics.effects import EFFECTS
@@ -66,12 +69,14 @@ class Prober:
 
     def probe(self, ranking: Ranking, train: Record | Sequence[Record], validation: Record | Sequence[Record], *,
               ranker: Ranker = Ranker(), deadline: float | None = None, discovery: Discovery | None = None,
-              complete: bool = False) -> MismatchProbes:
+              complete: bool = False, first: ModelScore | None = None) -> MismatchProbes:
         """Probe every place on ``ranking``'s baseline (the ladder's last rung), fitted on ``train`` and scored on
         ``validation``. ``ranker``: the ranking's settings, which the refits use; ``deadline``: a
         ``time.perf_counter()`` time by which every refit ends (a refit over it is reported undecided);
         ``discovery``: the discovery on that rung, whose closed form the force's place takes; ``complete``: the
-        rung's residual is noise (no probe runs unless :attr:`always`)."""
+        rung's residual is noise (no probe runs unless :attr:`always`); ``first``: the ladder's first rung, the
+        physics fitted alone, from which an effect's ``far_strength`` is refitted (default: ``ranking``'s
+        baseline)."""
         train, validation = as_records(train), as_records(validation)
         score = ranking.baseline
         model, fit = score.model, score.estimate
@@ -106,6 +111,8 @@ class Prober:
                 tried = _refit_best([new[name] for name in names if name in new], extended, refits, ranker.shortlist)
             extras = _discovered(discovery) if place.name == FORCE else \
                 self._output_form(ranking, train, validation, ranker, template) if place.name == OUTPUT_MAP else []
+            extras += _from_far_strength(effects[place.name], first or score, ranking, train, validation, ranker,
+                                         template)
             rows.append(_row(place, tried, score.nrmse_validation, extras, discovered=discovery is not None))
         probes.rows = ranked(rows, [place.name for place in self.places])
         return probes
@@ -163,6 +170,29 @@ def _refit_best(entries: list[EffectEvidence], extended: dict[str, tuple], refit
         entry.refit_reason = "refitted: among the best first-order scores of its place"
         refits.run(entry, *extended[entry.effect])
     return best
+
+
+def _from_far_strength(effects: list, first: ModelScore, ranking: Ranking, train: list[Record],
+                       validation: list[Record], ranker: Ranker, template: Budget) -> list[tuple]:
+    """Each of ``effects`` that has a ``far_strength``, refitted from it on ``first``'s physics (as a shortlisted
+    refit, within its budget) and scored on validation: options of its place (``(score, fitted, note)``)."""
+    options = []
+    for effect in (e for e in effects if e.far_strength is not None):
+        refits = Refits(first.model.display_name, train, validation, first.estimate, first, ranking.rule,
+                        ranking.initial_state, ranker.max_nfev, template)
+        entry = EffectEvidence(effect.name, effect.equation, 0.0, 1, effect.far_strength,
+                               refit_reason="refitted from its far strength on the physics alone")
+        extended = copy.deepcopy(first.model) + copy.deepcopy(effect)
+        bounds = {f"{effect.name}.{name}": limits for name, limits in effect.bounds(train).items()}
+        refits.run(entry, extended, f"{effect.name}.{effect.strength}", None, bounds)
+        if entry.refit is None:
+            log.info("%s from %s = %g: no refit (%s)", effect.name, effect.strength, effect.far_strength,
+                     entry.failure or entry.refit_reason)
+            continue
+        own = _parameters(entry).rsplit(" (", 1)[0]
+        options.append((entry.refit, effect.name, f"{own} (refitted from {effect.strength} = {effect.far_strength:g} "
+                                                  f"on {first.model.display_name} alone)"))
+    return options
 
 
 def _discovered(discovery: Discovery | None) -> list[tuple]:
