@@ -3,9 +3,12 @@ unit, initialisation window, published figures with their sources, goal), their 
 fields every run writes (``<name>.json``), and the protocols' numerics (a noise floor, a periodic steady state, a
 refit with one effect replaced).
 
-    python -m torchpaml.leaderboard [--results results] [--only NAME ...]
+    python -m torchpaml.leaderboard [--results results] [--data ../shared/data] [--only NAME ...]
 
-runs every registered benchmark's experiment (``make leaderboard``), each with ``--out results/<name>``.
+runs every registered benchmark (``make leaderboard``), each into ``results/<name>``: its experiment script with
+``--out results/<name>``, or, where its entry names a ``model`` and no script, the registry's own protocol
+(:func:`run_benchmark`) on ``<data>/<folder>``. A new benchmark of the second kind is one entry file
+(``torchpaml/_leaderboard/entries/<name>.py``, defining ``BENCHMARK = Benchmark(...)``) and its data.
 """
 
 import argparse
@@ -13,25 +16,40 @@ import subprocess
 import sys
 from pathlib import Path
 
+from torchpaml._errors import ConfigurationError
 from torchpaml._leaderboard.benchmark import Benchmark, Published
 from torchpaml._leaderboard.protocols import noise_floor, periodic_twice, with_effect
 from torchpaml._leaderboard.registry import BENCHMARKS, benchmark
 from torchpaml._leaderboard.result import (LIMITS, SCHEMA_VERSION, arguments, goal_entry, hybrid_entry,
                                            ladder_entries, tried_entries, write_result)
+from torchpaml._leaderboard.runner import diagnosed_goal, run_benchmark
+from torchpaml.cli.progress import progress_lines
 
-__all__ = ["BENCHMARKS", "Benchmark", "LIMITS", "Published", "SCHEMA_VERSION", "arguments", "benchmark", "goal_entry",
-           "hybrid_entry", "ladder_entries", "noise_floor", "periodic_twice", "tried_entries", "with_effect",
-           "write_result"]
+__all__ = ["BENCHMARKS", "Benchmark", "LIMITS", "Published", "SCHEMA_VERSION", "arguments", "benchmark",
+           "diagnosed_goal", "goal_entry", "hybrid_entry", "ladder_entries", "noise_floor", "periodic_twice",
+           "run_benchmark", "tried_entries", "with_effect", "write_result"]
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run each registered benchmark's experiment in turn; the exit status of the first that fails, else 0."""
-    parser = argparse.ArgumentParser(description="run every registered benchmark's experiment")
+    """Run each registered benchmark in turn; the exit status of the first that fails, else 0."""
+    parser = argparse.ArgumentParser(description="run every registered benchmark")
     parser.add_argument("--results", type=Path, default=Path("results"), help="where each writes <name>/")
+    parser.add_argument("--data", type=Path, default=Path("..") / "shared" / "data",
+                        help="the benchmarks' data folders, for those the registry's protocol runs "
+                             "(default ../shared/data)")
     parser.add_argument("--only", nargs="*", default=None, help=f"these benchmarks only, of {sorted(BENCHMARKS)}")
     args = parser.parse_args(argv)
     chosen = [benchmark(name) for name in args.only] if args.only else list(BENCHMARKS.values())
     for entry in chosen:
+        if entry.experiment is None:
+            print(f"{entry.name}: the registry's protocol on {args.data / entry.folder}", flush=True)
+            try:
+                with progress_lines(entry.name):
+                    run_benchmark(entry, args.results / entry.name, args.data / entry.folder)
+            except ConfigurationError as error:
+                print(f"{entry.name}: {error}", file=sys.stderr)
+                return 2
+            continue
         command = [sys.executable, entry.experiment, "--out", str(args.results / entry.name), *entry.arguments]
         print(" ".join(command), flush=True)
         status = subprocess.call(command)

@@ -13,7 +13,8 @@ from the state ``start`` says, over the samples after the first $n_0$ = ``init_w
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Literal
 
 import torch
@@ -21,6 +22,7 @@ import torch
 from torchpaml._data import Record
 from torchpaml._data.simulation import record_states, simulate_record
 from torchpaml._diagnostics.results import ModelScore
+from torchpaml._fit.initial_state import InitialState, Rest
 from torchpaml._fit.physics_fit import estimate_initial_state
 from torchpaml._leaderboard.protocols import periodic_twice
 from torchpaml._errors import ConfigurationError
@@ -58,7 +60,13 @@ class Benchmark:
         goal: the leaderboard's goal on ``goal_split``, in ``unit``.
         published: the published figures the leaderboard sets ours beside.
         experiment: the script that runs the protocol, relative to the repository, and ``arguments``, what the
-            leaderboard passes it beside ``--out``.
+            leaderboard passes it beside ``--out``; ``None``: the registry's own protocol runs it
+            (:func:`~torchpaml._leaderboard.protocol.run`), from ``model``, ``candidates`` and ``initial_state``:
+            then the benchmark is its entry file and its data.
+        model: builds the physics the diagnosis starts from, given the training part (a start from its frequency
+            response, say); for the registry's own protocol.
+        candidates: the effects the diagnosis ranks (default: :func:`~torchpaml.default_effects`).
+        initial_state: each record's initial state in the fits: ``Rest()`` or ``Estimate()``.
         steady_state: the splits scored in their periodic steady state.
         hold: how the input moved between samples (``None``: the file's metadata, else ``foh``).
         velocity: the model's state that is the output's rate, scored beside the output (module docstring);
@@ -75,7 +83,7 @@ class Benchmark:
     goal_split: str
     goal: float
     published: tuple[Published, ...]
-    experiment: str
+    experiment: str | None = None
     scale: float = 1.0
     init_window: int = 0
     start: Literal["window", "rest", "train"] = "window"
@@ -84,8 +92,14 @@ class Benchmark:
     arguments: tuple[str, ...] = ()
     hold: str | None = None
     velocity: str | None = None
+    model: Callable[[Record], object] | None = None
+    candidates: Callable[[], list] | None = None
+    initial_state: InitialState = field(default_factory=Rest)
 
     def __post_init__(self):
+        if (self.experiment is None) == (self.model is None):
+            raise ValueError(f"{self.name}: give either an experiment script or a model for the registry's protocol "
+                             "(Benchmark(model=lambda train: physics)), not both")
         if self.goal_split not in self.tests or not set(self.steady_state) <= set(self.tests):
             raise ValueError(f"{self.name}: the goal's split and the steady-state splits must be test splits "
                              f"{self.tests}")

@@ -1,5 +1,6 @@
 """The registry of the measured benchmarks: every module of :mod:`torchpaml._leaderboard.entries`, each of which
-defines one ``BENCHMARK``, by name. A new benchmark is one such file, its experiment script and its data."""
+defines one ``BENCHMARK``, by name. A new benchmark is one such file and its data (its physics in the entry, run by the
+registry's protocol, :mod:`~torchpaml._leaderboard.runner`), or one such file, its experiment script and its data."""
 
 from __future__ import annotations
 

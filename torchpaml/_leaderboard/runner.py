@@ -1,0 +1,78 @@
+r"""The registry's own protocol: a benchmark whose entry names a ``model`` (and no experiment script) is run from its
+entry file and its data alone.
+
+    run_benchmark(benchmark, out, data)
+
+reads the training record (its last ``validation_share`` held out for validation) and the test records from
+``data``, diagnoses the entry's physics with its candidates (:func:`~torchpaml.diagnose`, the Chebyshev residual's
+domain 5 % beyond the largest training input), writes the diagnosis folder ``out/diagnosis/`` and the leaderboard's
+fields (:mod:`~torchpaml._leaderboard.result`) as ``out/<name>.json``, with the goal's limit read from the diagnosis
+(:func:`diagnosed_goal`).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from torchpaml._data import Record
+from torchpaml._diagnostics.diagnosis import Diagnosis, diagnose
+from torchpaml._diagnostics.ranking.ranker import Ranker
+from torchpaml._errors import ConfigurationError
+from torchpaml._leaderboard.benchmark import Benchmark
+from torchpaml._leaderboard.result import (SCHEMA_VERSION, goal_entry, hybrid_entry, ladder_entries, tried_entries,
+                                           write_result)
+from torchpaml._physics.effects import default_effects
+from torchpaml._render.report import write_report
+from torchpaml._render.schema import diagnosis_to_dict
+
+__all__ = ["diagnosed_goal", "run_benchmark"]
+
+
+def run_benchmark(benchmark: Benchmark, out: Path, data: Path, shortlist: int = 2) -> dict:
+    """Run ``benchmark``'s protocol from its entry (module docstring) on the records in ``data``; the result
+    written to ``out/<name>.json``. ``shortlist``: the candidates refitted per rung."""
+    if benchmark.model is None:
+        raise ConfigurationError(f"{benchmark.name} is run by its script {benchmark.experiment}, not by the registry's "
+                                 "protocol; give its entry a model (Benchmark(model=lambda train: physics))")
+    missing = [stem for stem in (benchmark.train, *benchmark.tests) if not (data / f"{stem}.csv").is_file()]
+    if missing:
+        raise ConfigurationError(f"{data} lacks {', '.join(f'{stem}.csv' for stem in missing)}; point --data at the "
+                                 f"{benchmark.title} data (shared/data/{benchmark.folder})")
+    start = time.perf_counter()
+    train, validation = benchmark.split(Record.from_csv(data / f"{benchmark.train}.csv", "train", hold=benchmark.hold))
+    tests = {name: Record.from_csv(data / f"{name}.csv", name, hold=benchmark.hold) for name in benchmark.tests}
+    alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
+    candidates = default_effects() if benchmark.candidates is None else benchmark.candidates()
+    diagnosis = diagnose(benchmark.model(train), candidates, train, validation, ranker=Ranker(shortlist=shortlist),
+                         initial_state=benchmark.initial_state, alpha=alpha)
+    write_report(diagnosis, out / "diagnosis")
+    models = ladder_entries(benchmark, diagnosis, tests)
+    hybrid = hybrid_entry(benchmark, diagnosis.ladder.final, [train], alpha, diagnosis.hybrids[-1].adequacy, tests)
+    result = {"schema_version": SCHEMA_VERSION, "benchmark": benchmark.name, "protocol": benchmark.protocol(),
+              "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid,
+              "hybrids": diagnosis_to_dict(diagnosis)["hybrid"],
+              "goal": diagnosed_goal(benchmark, diagnosis, models, hybrid),
+              "tried": tried_entries(benchmark, diagnosis, tests), "seconds": time.perf_counter() - start}
+    return write_result(out, result, diagnosis.verdict)
+
+
+def diagnosed_goal(benchmark: Benchmark, diagnosis: Diagnosis, models: list[dict], hybrid: dict) -> dict:
+    """The goal entry (:func:`~torchpaml._leaderboard.result.goal_entry`) with the limit the diagnosis reads: the
+    noise floor where it calls the final grey box complete at the training records' noise, else the model class,
+    with the place the probes name (where they ran)."""
+    final, split = diagnosis.ladder.final, benchmark.goal_split
+    evidence = {"validation_nrmse": final.nrmse_validation, split: models[-1]["rmse"][split]}
+    if diagnosis.hybrids[-1].adequacy.complete:
+        explanation = (f"the noise floor: the diagnosis calls the final grey box complete at the training records' "
+                       f"noise (its validation mismatch, {100 * final.nrmse_validation:.3g} %, is noise that the "
+                       f"orthogonal residual cannot reduce)")
+        return goal_entry(benchmark, models, hybrid, "noise floor", evidence, explanation)
+    explanation = (f"the model class: the final grey box's validation mismatch ({100 * final.nrmse_validation:.3g} %) "
+                   f"is more than noise, and no candidate passes the rule")
+    best = None if diagnosis.probes is None else diagnosis.probes.best
+    if best is not None:
+        evidence["probe_gain"] = best.gain
+        explanation += (f"; the probes point at the {best.place} ({best.fitted}, a validation gain of "
+                        f"{100 * best.gain:.3g} %)")
+    return goal_entry(benchmark, models, hybrid, "model class", evidence, explanation)
