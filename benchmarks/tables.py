@@ -229,13 +229,16 @@ def limits(results: Path) -> str | None:
 def tried(result: dict) -> str:
     """What we tried on the benchmark: every hypothesis the diagnosis fitted (each rung's refitted candidates, then the
     probes of where the final grey box's mismatch points), its validation gain, its test figures, and whether it is
-    kept in the final grey box."""
+    kept in the final grey box; where the benchmark scores a velocity (``<split>_velocity``), its figures beside."""
     unit, splits = result["protocol"]["unit"], result["protocol"]["test"]
-    lines = ["| stage | hypothesis | validation gain | " + " | ".join(splits) + " | kept |",
-             "|---|---|---|" + "---|" * len(splits) + "---|"]
+    columns = [(k, k, unit) for k in splits] + [
+        (f"{k}_velocity", f"{k} (velocity)", f"{unit}/s") for k in splits
+        if any(row["rmse"] and f"{k}_velocity" in row["rmse"] for row in result["tried"])]
+    lines = ["| stage | hypothesis | validation gain | " + " | ".join(title for _, title, _ in columns) + " | kept |",
+             "|---|---|---|" + "---|" * len(columns) + "---|"]
     for row in result["tried"]:
         gain = "—" if row["validation_gain"] is None else f"{100 * row['validation_gain']:.1f} %"
-        figures = ["—" if row["rmse"] is None else _figure(row["rmse"][k], unit) for k in splits]
+        figures = ["—" if row["rmse"] is None else _figure(row["rmse"][key], each) for key, _, each in columns]
         stage = row["stage"] if row["place"] is None else f"probe: {row['place']}"
         kept = "yes" if row["kept"] else "no (the place the probes name)" if row["named"] else "no"
         lines.append(f"| {stage} | {row['hypothesis']} | {gain} | " + " | ".join(figures) + f" | {kept} |")

@@ -22,6 +22,9 @@ sample is used, not even the loader's 5-sample initialisation window.
 
 5. The final model refitted with the spill rate free (:func:`free_spill`), unless ``--free-spill`` ran the whole
    diagnosis so: ``free_spill {rate, solver, rmse {test}, seconds}`` (``null`` then, or where no overflow was found).
+6. Hypotheses tried beside the diagnosis, not kept (``tried``; :func:`hypotheses`): the sensor's zero off the outlet
+   (``sensor_offset`` on the final model, scored on validation), and the final model refitted on the whole
+   estimation record.
 
 Writes ``DIR/cascaded_tanks.json`` in the shape of ``silverbox.json``, with ``rmse: {"test": V}`` and
 ``nrmse: {"test": RMSE / std y}``, plus the leaderboard's fields (:mod:`torchpaml.leaderboard`; ``goal`` with what
@@ -31,16 +34,17 @@ limits the figure, :func:`goal`), and the diagnosis folder ``DIR/diagnosis/``.
 from __future__ import annotations
 
 import argparse
+import copy
 import time
 from pathlib import Path
 
-from tanks import FREE_SPILL_RATE, MAX_SPILL_RATE, SensorClip, TorricelliOutflow, TwoTanks, UpperOverflow
+from tanks import FREE_SPILL_RATE, MAX_SPILL_RATE, SensorClip, SensorOffset, TorricelliOutflow, TwoTanks, UpperOverflow
 
 from torchpaml import (DeadZone, Discoverer, Estimate, ModelScore, OutputSaturation, Record, diagnose, fit_physics,
                        simulate_record, write_report)
 from torchpaml.cli.progress import progress_lines
-from torchpaml.leaderboard import (SCHEMA_VERSION, benchmark, goal_entry, hybrid_entry, ladder_entries,
-                                   tried_entries, with_effect, write_result)
+from torchpaml.leaderboard import (SCHEMA_VERSION, benchmark, goal_entry, hybrid_entry, hypothesis_entry,
+                                   ladder_entries, tried_entries, with_effect, write_result)
 from torchpaml.report import diagnosis_to_dict, discovery_to_dict, ranking_table
 
 BENCHMARK = benchmark("cascaded_tanks")
@@ -67,6 +71,19 @@ def free_spill(final: ModelScore, train: Record, tests: dict[str, Record]) -> di
             "rmse": {name: BENCHMARK.score(free, record, solver=fit.solver, train_state=fit.initial_states[0])
                      for name, record in tests.items()},
             "seconds": time.perf_counter() - start}
+
+
+def hypotheses(final: ModelScore, estimation: Record, train: Record, validation: Record,
+               tests: dict[str, Record]) -> list[dict]:
+    """The hypotheses tried beside the diagnosis (:func:`~torchpaml.leaderboard.hypothesis_entry`), from the final
+    model's values and initial state: the sensor's zero off the outlet (:class:`tanks.SensorOffset`), scored on
+    validation, and the final model refitted on the whole estimation record (validation part included)."""
+    return [hypothesis_entry(BENCHMARK, "hypothesis", "sensor_offset", copy.deepcopy(final.model) + SensorOffset(),
+                             [train], tests, initial_state=Estimate(), baseline=final, validation=[validation],
+                             start_states=final.train_states),
+            hypothesis_entry(BENCHMARK, "protocol", "the final grey box refitted on the whole estimation record",
+                             copy.deepcopy(final.model), [estimation], tests, initial_state=Estimate(),
+                             start_states=final.train_states)]
 
 
 def goal(models: list[dict], hybrid: dict, spill: dict | None, validation: float) -> dict:
@@ -122,7 +139,9 @@ def main(argv: list[str] | None = None) -> dict:
               "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid,
               "hybrids": diagnosis_to_dict(diagnosis)["hybrid"], "free_spill": spill,
               "goal": goal(models, hybrid, spill, validation_rmse),
-              "tried": tried_entries(BENCHMARK, diagnosis, tests), "seconds": time.perf_counter() - start}
+              "tried": [*tried_entries(BENCHMARK, diagnosis, tests),
+                        *hypotheses(final, estimation, train, validation, tests)],
+              "seconds": time.perf_counter() - start}
     if args.discover:
         found = diagnose(physics, [], train, validation, initial_state=Estimate(), discovery=Discoverer(),
                          prober=None).discovery

@@ -1,15 +1,19 @@
 """The benchmark contract (``torchpaml.leaderboard``): every registered benchmark is whole, its experiment exists and
 names it, its data (where ../shared is present) holds its splits, and its metric is the one RMSE."""
 
+import copy
 import math
 from pathlib import Path
 
 import pytest
 import torch
 
-from torchpaml import ConfigurationError, Oscillator, Record, simulate_record
+from torchpaml import (ConfigurationError, CubicStiffness, Oscillator, Record, Rest, Simulated, fit_physics,
+                       simulate_record)
 from torchpaml._data.simulation import record_states
-from torchpaml.leaderboard import BENCHMARKS, Benchmark, Published, benchmark, noise_floor, periodic_twice
+from torchpaml._diagnostics.ranking.scoring import score_model
+from torchpaml.leaderboard import (BENCHMARKS, Benchmark, Published, benchmark, hypothesis_entry, noise_floor,
+                                   periodic_twice, validation_agreement)
 
 ROOT = Path(__file__).resolve().parents[2]
 SHARED = ROOT.parent / "shared" / "data"
@@ -96,3 +100,38 @@ def test_the_velocity_is_scored_against_the_central_differences_of_the_measured_
     assert entry.velocity_score(wrong, record) == pytest.approx(0.2 * speed, rel=0.05)
     with pytest.raises(ConfigurationError, match="scores no velocity"):
         Benchmark("b", "B", "b", "train", ("test",), "RMSE", "m", "test", 1.0, (), "x").velocity_score(truth, record)
+
+
+def test_a_hypothesis_beside_the_diagnosis_is_fitted_scored_and_never_kept():
+    """The cubic spring the records hold, tried on the linear oscillator: fitted on training, its validation gain
+    against the linear fit's, its test figure at the noise; one that blows up is a row without figures."""
+    torch.manual_seed(0)
+    device = Oscillator(zeta=0.2, omega0=2.0, gain=4.0) + CubicStiffness(2.0)
+    train, validation, test = (Simulated(device, kind, 1.0, [seed], 20.0, 0.05, noise=noise).experiments()[0]
+                               for kind, seed, noise in (("pseudorandom", 0, 0.02), ("multisine", 1, 0.02),
+                                                         ("multisine", 2, 0.0)))
+    entry = Benchmark("b", "B", "b", "train", ("test",), "RMSE", "m", "test", 1.0,
+                      (Published("1 m", "m", "s", "black box"),), "experiments/b/run.py", start="rest")
+    linear = Oscillator(zeta=0.5, omega0=1.5, gain=1.0, learn=("zeta", "omega0", "gain"))
+    baseline = score_model(linear, fit_physics(linear, [train]), [validation])
+    row = hypothesis_entry(entry, "hypothesis", "cubic_stiffness", copy.deepcopy(linear) + CubicStiffness(),
+                           [train], {"test": test}, initial_state=Rest(), baseline=baseline, validation=[validation])
+    assert row["validation_gain"] > 0.5 and not row["kept"] and row["stage"] == "hypothesis"
+    assert row["rmse"]["test"] < 0.1 * entry.score(linear, test)
+    runaway = Oscillator(zeta=0.01, omega0=2.0, gain=4.0, learn=("gain",)) + CubicStiffness(-1e4, learn=())
+    failed = hypothesis_entry(entry, "hypothesis", "runaway", runaway, [train], {"test": test},
+                              initial_state=Rest())
+    assert failed["rmse"] is None and failed["hypothesis"].startswith("runaway (failed: ")
+
+
+def test_the_validation_agreement_is_the_rank_correlation_of_the_gains_with_the_test_figures():
+    def row(gain, figure, hypothesis="h"):
+        return {"stage": "rung 1", "place": None, "hypothesis": hypothesis, "validation_gain": gain,
+                "rmse": {"test": figure}, "kept": False, "named": False}
+
+    agreeing = [row(0.5, 1.0), row(0.3, 2.0), row(0.1, 3.0), row(None, None)]
+    assert validation_agreement(agreeing, "test")["rank_correlation"] == pytest.approx(-1.0)
+    against = validation_agreement([row(0.5, 3.0), row(0.3, 2.0), row(-0.7, 1.0, "best")], "test")
+    assert against["rank_correlation"] == pytest.approx(1.0) and against["hypotheses"] == 3
+    assert against["best_on_test"] == {"stage": "rung 1", "hypothesis": "best", "validation_gain": -0.7, "test": 1.0}
+    assert validation_agreement(agreeing[:2], "test")["rank_correlation"] is None  # too few to rank

@@ -148,6 +148,10 @@ class Benchmark:
             y = simulate_record(model, prepared, self.start_of(model, prepared, solver, train_state), solver=solver)[0]
         return self.metric_of(prepared, y)
 
+    def unit_of(self, key: str) -> str:
+        """The unit of a figure keyed ``key`` in a row's ``rmse``: ``unit``, or ``unit``/s for ``<split>_velocity``."""
+        return f"{self.unit}/s" if key.endswith("_velocity") else self.unit
+
     def velocity_score(self, model, record: Record, *, solver: Solver | None = None,
                        train_state: torch.Tensor | None = None) -> float:
         r"""The RMSE, in ``unit``/s, of the state :attr:`velocity` of the fitted ``model``'s free run on the test
@@ -163,12 +167,17 @@ class Benchmark:
         return self._rms(prepared, measured - velocity)
 
     def scores(self, step: ModelScore, tests: dict[str, Record]) -> dict[str, float]:
-        """:meth:`score` of a scored model (its model, solver and training records' initial states) on every test
-        record, by split, and where :attr:`velocity` names a state, :meth:`velocity_score` as ``<split>_velocity``."""
+        """:meth:`scores_of` a scored model: its model, solver and training records' initial states."""
         state = step.train_states[0] if step.train_states else None
-        figures = {name: self.score(step.model, record, solver=step.solver, train_state=state)
+        return self.scores_of(step.model, tests, solver=step.solver, train_state=state)
+
+    def scores_of(self, model, tests: dict[str, Record], *, solver: Solver | None = None,
+                  train_state: torch.Tensor | None = None) -> dict[str, float]:
+        """:meth:`score` of the fitted ``model`` on every test record, by split, and where :attr:`velocity` names a
+        state, :meth:`velocity_score` as ``<split>_velocity``."""
+        figures = {name: self.score(model, record, solver=solver, train_state=train_state)
                    for name, record in tests.items()}
         if self.velocity is not None:
-            figures |= {f"{name}_velocity": self.velocity_score(step.model, record, solver=step.solver,
-                                                                train_state=state) for name, record in tests.items()}
+            figures |= {f"{name}_velocity": self.velocity_score(model, record, solver=solver, train_state=train_state)
+                        for name, record in tests.items()}
         return figures

@@ -16,28 +16,34 @@ residual of the paper on top (:func:`~torchpaml.analysis.hybrid_residual`, fitte
 whether it meets the goal, and what limits it: one of :data:`LIMITS`, with the measured numbers that show it.
 ``tried`` holds every hypothesis the diagnosis fitted (:func:`tried_entries`): each rung's refitted candidates, then
 the probes of where the final grey box's mismatch points, each with its validation gain, its test figures, whether
-it is kept in the final grey box, and whether the probes name its place. Every figure is :meth:`Benchmark.score`'s.
+it is kept in the final grey box, and whether the probes name its place; a protocol adds the hypotheses it tries
+beside the diagnosis (:func:`hypothesis_entry`). Every figure is :meth:`Benchmark.score`'s.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import torch
+from scipy.stats import spearmanr
 
 from torchpaml._diagnostics.analysis.adequacy import Adequacy
 from torchpaml._diagnostics.diagnosis import Diagnosis, hybrid_residual
 from torchpaml._diagnostics.results import ModelScore
 from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
-from torchpaml._errors import DomainError
+from torchpaml._diagnostics.ranking.scoring import score_model
+from torchpaml._errors import DomainError, SimulationError
+from torchpaml._fit.initial_state import InitialState
+from torchpaml._fit.physics_fit import fit_physics
 from torchpaml._leaderboard.benchmark import Benchmark
 from torchpaml._render.schema import diagnosis_to_dict
 
-__all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "ladder_entries", "tried_entries",
-           "write_result"]
+__all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "hypothesis_entry", "ladder_entries",
+           "tried_entries", "validation_agreement", "write_result"]
 
 #: The version of the leaderboard fields; a change of their meaning raises it.
 SCHEMA_VERSION = 1
@@ -64,7 +70,7 @@ def ladder_entries(benchmark: Benchmark, diagnosis: Diagnosis, tests: dict[str, 
         rows.append({"model": step.name, "equation": step.equation, "parameters": step.parameters,
                      "uncertainty": rung["uncertainty"], "solver": type(step.solver).__name__,
                      "substeps": step.solver.substeps, "rmse": rmse})
-        print(f"{step.name}: " + ", ".join(f"{k} {v:.4g} {benchmark.unit}" for k, v in rmse.items()), flush=True)
+        print(f"{step.name}: " + ", ".join(f"{k} {v:.4g} {benchmark.unit_of(k)}" for k, v in rmse.items()), flush=True)
     return rows
 
 
@@ -128,6 +134,49 @@ def tried_entries(benchmark: Benchmark, diagnosis: Diagnosis, tests: dict[str, R
                      "validation_gain": row.gain, "rmse": None if row.score is None else benchmark.scores(row.score, tests),
                      "kept": False, "named": row is best})
     return rows
+
+
+def hypothesis_entry(benchmark: Benchmark, stage: str, hypothesis: str, model, train: list[Record],
+                     tests: dict[str, Record], *, initial_state: InitialState, baseline: ModelScore | None = None,
+                     validation: Sequence[Record] = (), start_states: list[torch.Tensor] | None = None) -> dict:
+    """A hypothesis a protocol tries beside the diagnosis (a user's effect on the final grey box; the final grey box
+    refitted on the whole training record), as a row of ``tried``: ``model`` fitted on ``train`` from
+    ``start_states`` (:func:`~torchpaml.fit_physics`), scored on ``tests`` and, where ``validation`` is given, on it
+    as the diagnosis scores a candidate (``validation_gain`` over ``baseline``'s mismatch; ``None`` otherwise).
+    Never kept: the diagnosis' final grey box stays the benchmark's model. Where its fit or its validation score
+    blows up (a :class:`~torchpaml.SimulationError`), the row says so, without figures. Printed."""
+    try:
+        fit = fit_physics(model, train, initial_state=initial_state, start_states=start_states)
+        gain = None if not validation else 1.0 - score_model(
+            model, fit, list(validation), initial_state=initial_state).nrmse_validation / baseline.nrmse_validation
+    except SimulationError as error:  # as the ranking's refits: a fit or a validation score that blows up
+        reason = str(error).split(":")[0]
+        print(f"{stage}: {hypothesis}: failed ({reason})", flush=True)
+        return {"stage": stage, "place": None, "hypothesis": f"{hypothesis} (failed: {reason})",
+                "validation_gain": None, "rmse": None, "kept": False, "named": False}
+    state = fit.initial_states[0] if fit.initial_states else None
+    rmse = benchmark.scores_of(model, tests, solver=fit.solver, train_state=state)
+    print(f"{stage}: {hypothesis}: " + ", ".join(f"{k} {v:.4g} {benchmark.unit_of(k)}" for k, v in rmse.items()) +
+          ("" if gain is None else f" (validation gain {100 * gain:.1f} %)"), flush=True)
+    return {"stage": stage, "place": None, "hypothesis": hypothesis, "validation_gain": gain, "rmse": rmse,
+            "kept": False, "named": False}
+
+
+def validation_agreement(tried: list[dict], split: str) -> dict:
+    """Whether the validation chose as the test would have: over the rows of ``tried`` with a validation gain and a
+    figure on ``split``, the Spearman rank correlation of the gain with the test figure (-1: the larger the gain,
+    the lower the test error, every time; near 0 or above: the validation does not predict the test), how many
+    rows, and the row best on test (its stage, hypothesis, validation gain and figure)."""
+    rows = [row for row in tried if row["validation_gain"] is not None and row["rmse"] and
+            row["rmse"].get(split) is not None]
+    if len(rows) < 3:
+        return {"rank_correlation": None, "hypotheses": len(rows), "best_on_test": None}
+    correlation = float(spearmanr([row["validation_gain"] for row in rows], [row["rmse"][split] for row in rows])[0])
+    best = min(rows, key=lambda row: row["rmse"][split])
+    return {"rank_correlation": correlation, "hypotheses": len(rows),
+            "best_on_test": {"stage": best["stage"] if best["place"] is None else f"probe: {best['place']}",
+                             "hypothesis": best["hypothesis"], "validation_gain": best["validation_gain"],
+                             split: best["rmse"][split]}}
 
 
 def write_result(out: Path, result: dict, verdict: str) -> dict:
