@@ -14,6 +14,8 @@ with x1 the upper and x2 the lower level (in sensor volts). The effects:
 * :class:`SensorClip` (``sensor_clip``): the lower tank overflows and the measured level clips, at
   :data:`CLIP_LEVEL` = 10 V by the README's count of the clipped samples (fitted, and probed where it acts): an
   *output map*;
+* :class:`LowerOverflow` (``lower_overflow``): the lower tank spills above a level, so its level, not only its
+  reading, stops rising there: a *rate* on the lower tank's equation;
 * :class:`SensorOffset` (``sensor_offset``): the uncalibrated sensor's zero lies off the lower tank's outlet, so the
   outflow's law acts on the level plus an offset: an *output map*, tried on the final model beside the diagnosis.
 """
@@ -33,8 +35,8 @@ from torchpaml import (
     state_vector,
 )
 
-__all__ = ["CLIP_LEVEL", "FREE_SPILL_RATE", "MAX_SPILL_RATE", "SensorClip", "SensorOffset", "TorricelliOutflow", "TwoTanks",
-           "UpperOverflow"]
+__all__ = ["CLIP_LEVEL", "FREE_SPILL_RATE", "LowerOverflow", "MAX_SPILL_RATE", "SensorClip", "SensorOffset",
+           "TorricelliOutflow", "TwoTanks", "UpperOverflow"]
 
 CLIP_LEVEL = 10.0
 #: 1/s: the fastest spill the 4 s samples resolve explicitly, one sample interval (the default bound).
@@ -172,6 +174,35 @@ class SensorClip(AbstractEffect):
 
     def output_map(self, y):
         return y - self.w * (y - self.level).clamp(min=0)
+
+
+class LowerOverflow(AbstractEffect):
+    r"""The lower tank spills above a level $L$: $q = c\,\max(x_2 - L, 0)$ leaves it, back to the reservoir.
+
+    :class:`SensorClip` clips the reading at the rim, but the level it reads would go on rising and drain later
+    through the outlet; a spill stops the level itself. $L$ starts at :data:`CLIP_LEVEL` and is fitted with $c$,
+    bounded by ``max_rate`` (:data:`MAX_SPILL_RATE`, one sample interval, as :class:`UpperOverflow`'s). As
+    :class:`SensorClip`, it is probed from levels inside the measured range too (:meth:`starts`), where it acts.
+    """
+
+    name, equation = "lower_overflow", "- c*max(x_lower - L, 0)"
+    states = ("upper", "lower")
+
+    def __init__(self, c: float = 0.0, level: float = CLIP_LEVEL, *, max_rate: float = MAX_SPILL_RATE,
+                 learn=("c", "level")):
+        super().__init__()
+        register_parameters(self, [
+            PhysicalParameter("c", c, "1/s", Interval(-max_rate, max_rate), "spill rate above the level",
+                              physical=(0.0, max_rate)),
+            PhysicalParameter("level", level, "V", Positive(), "level where the lower tank spills"),
+        ], learn)
+
+    def starts(self, records):
+        y = torch.cat([r.y.flatten() for r in records])
+        return [{}, *({"level": float(torch.quantile(y, q))} for q in (0.9, 0.75))]
+
+    def rate(self, physics, x, u):
+        return self.on_state(physics, x, {"lower": -self.c * (x[..., 1] - self.level).clamp(min=0)})
 
 
 class SensorOffset(AbstractEffect):

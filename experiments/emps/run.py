@@ -38,8 +38,8 @@ from rigid_body import RigidBody  # the user's physics, beside this script
 
 from torchpaml import ConstantForce, CoulombFriction, Estimate, QuadraticDamping, Ranker, Record, diagnose, write_report
 from torchpaml.cli.progress import progress_lines
-from torchpaml.leaderboard import (SCHEMA_VERSION, arguments, benchmark, goal_entry, hybrid_entry, hypothesis_entry,
-                                   ladder_entries, tried_entries, validation_agreement, write_result)
+from torchpaml.leaderboard import (SCHEMA_VERSION, agreement_evidence, arguments, benchmark, goal_entry, hybrid_entry,
+                                   hypothesis_entry, ladder_entries, tried_entries, validation_agreement, write_result)
 
 BENCHMARK = benchmark("emps")
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / BENCHMARK.folder
@@ -65,21 +65,15 @@ def goal(final, parts: list[Record], models: list[dict], hybrid: dict, tried: li
     validation gains of the hypotheses tried predict their test figures (:func:`validation_agreement`)."""
     evidence = {record.name: BENCHMARK.score(final.model, record, solver=final.solver) for record in parts}
     evidence["test"] = models[-1]["rmse"]["test"]
-    agreement = validation_agreement(tried, "test")
     explanation = (f"the model class: the final grey box drifts {evidence['train']:.2g} mm on the estimation record's "
                    f"training part and {evidence['validation']:.2g} mm on its validation part, both free runs from "
                    f"the same {BENCHMARK.init_window}-sample window as the test ({evidence['test']:.2g} mm): the force "
                    f"it misses acts during the estimation run too, which has no external pulses. An integrating plant "
                    f"turns any such force error into a drift of the position")
-    best = agreement["best_on_test"]
-    if best is not None:
-        evidence |= {"rank_correlation": agreement["rank_correlation"], "hypotheses": agreement["hypotheses"],
-                     "best_on_test": best["test"], "best_on_test_validation_gain": best["validation_gain"]}
-        explanation += (f". Over the {agreement['hypotheses']} hypotheses tried, the rank correlation of the "
-                        f"validation gain with the test figure is {agreement['rank_correlation']:+.2f} (-1: the "
-                        f"validation would pick the test's best): the best on test, {best['hypothesis']} "
-                        f"({best['stage']}, {best['test']:.3g} mm), gains {100 * best['validation_gain']:.1f} % on "
-                        f"validation, so the figure moves with drift that the validation cannot see")
+    agreement, sentence = agreement_evidence(validation_agreement(tried, "test"), "test", BENCHMARK.unit)
+    if agreement:
+        evidence |= agreement
+        explanation += f". {sentence[0].upper()}{sentence[1:]}, so the figure moves with drift the validation cannot see"
     return goal_entry(BENCHMARK, models, hybrid, "model class", evidence, explanation)
 
 

@@ -12,8 +12,8 @@ from torchpaml import (ConfigurationError, CubicStiffness, Oscillator, Record, R
                        simulate_record)
 from torchpaml._data.simulation import record_states
 from torchpaml._diagnostics.ranking.scoring import score_model
-from torchpaml.leaderboard import (BENCHMARKS, Benchmark, Published, benchmark, hypothesis_entry, noise_floor,
-                                   periodic_twice, validation_agreement)
+from torchpaml.leaderboard import (BENCHMARKS, Benchmark, Published, agreement_evidence, benchmark, hypothesis_entry,
+                                   noise_floor, periodic_twice, validation_agreement)
 
 ROOT = Path(__file__).resolve().parents[2]
 SHARED = ROOT.parent / "shared" / "data"
@@ -135,3 +135,8 @@ def test_the_validation_agreement_is_the_rank_correlation_of_the_gains_with_the_
     assert against["rank_correlation"] == pytest.approx(1.0) and against["hypotheses"] == 3
     assert against["best_on_test"] == {"stage": "rung 1", "hypothesis": "best", "validation_gain": -0.7, "test": 1.0}
     assert validation_agreement(agreeing[:2], "test")["rank_correlation"] is None  # too few to rank
+    evidence, sentence = agreement_evidence(against, "test", "mm")
+    assert evidence == {"rank_correlation": pytest.approx(1.0), "hypotheses": 3, "best_on_test": 1.0,
+                        "best_on_test_validation_gain": -0.7}
+    assert "is +1.00" in sentence and "best (rung 1, 1 mm), gains -70.0 % on validation" in sentence
+    assert agreement_evidence(validation_agreement(agreeing[:2], "test"), "test", "mm") == ({}, "")

@@ -43,7 +43,7 @@ from torchpaml._leaderboard.benchmark import Benchmark
 from torchpaml._render.schema import diagnosis_to_dict
 
 __all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "hypothesis_entry", "ladder_entries",
-           "tried_entries", "validation_agreement", "write_result"]
+           "tried_entries", "validation_agreement", "agreement_evidence", "write_result"]
 
 #: The version of the leaderboard fields; a change of their meaning raises it.
 SCHEMA_VERSION = 1
@@ -177,6 +177,20 @@ def validation_agreement(tried: list[dict], split: str) -> dict:
             "best_on_test": {"stage": best["stage"] if best["place"] is None else f"probe: {best['place']}",
                              "hypothesis": best["hypothesis"], "validation_gain": best["validation_gain"],
                              split: best["rmse"][split]}}
+
+
+def agreement_evidence(agreement: dict, split: str, unit: str) -> tuple[dict[str, float], str]:
+    """:func:`validation_agreement`'s figures for a goal's ``evidence`` (``rank_correlation``, ``hypotheses``,
+    ``best_on_test``, ``best_on_test_validation_gain``) and its sentence; none where too few hypotheses had both."""
+    best = agreement["best_on_test"]
+    if best is None:
+        return {}, ""
+    evidence = {"rank_correlation": agreement["rank_correlation"], "hypotheses": agreement["hypotheses"],
+                "best_on_test": best[split], "best_on_test_validation_gain": best["validation_gain"]}
+    return evidence, (f"over the {agreement['hypotheses']} hypotheses tried, the rank correlation of the validation "
+                      f"gain with the test figure is {agreement['rank_correlation']:+.2f} (-1: the validation would "
+                      f"pick the test's best); the best on test, {best['hypothesis']} ({best['stage']}, "
+                      f"{best[split]:.3g} {unit}), gains {100 * best['validation_gain']:.1f} % on validation")
 
 
 def write_result(out: Path, result: dict, verdict: str) -> dict:
