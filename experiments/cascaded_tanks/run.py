@@ -26,8 +26,8 @@ sample is used, not even the loader's 5-sample initialisation window.
 6. Hypotheses tried beside the diagnosis, not kept (``tried``; :func:`hypotheses`): the sensor's zero off the outlet
    (``sensor_offset``) and the lower tank's own spill (``lower_overflow``), each on the final model and scored on
    validation, and the final model refitted on the whole estimation record. Among the ladder's candidates,
-   ``lower_overflow`` sends the greedy ladder down another path, which ends worse on validation (7.18 % against
-   4.76 %): it is tried on the final model instead.
+   ``lower_overflow`` sends the greedy ladder down another path (it is taken on the second rung, before the upper
+   tank's overflow), which ends worse on validation: it is tried on the final model instead.
 
 Writes ``DIR/cascaded_tanks.json`` in the shape of ``silverbox.json``, with ``rmse: {"test": V}`` and
 ``nrmse: {"test": RMSE / std y}``, plus the leaderboard's fields (:mod:`torchpaml.leaderboard`; ``goal`` with what
