@@ -106,7 +106,7 @@ def goal(models: list[dict], hybrid: dict, spill: dict | None, validation: float
         explanation += (f"; the spill's rate does not limit it either: left free, the fit makes the spill "
                         f"{spill['rate']:.4g} 1/s (the upper level clips at the rim) and the test figure is "
                         f"{spill['rmse']['test']:.3g} V against {final:.3g} V with the rate bounded")
-    agreement, sentence = agreement_evidence(validation_agreement(tried, "test"), "test", BENCHMARK.unit)
+    agreement, sentence = agreement_evidence(validation_agreement(tried, models, "test"), "test", BENCHMARK.unit)
     if agreement:
         evidence |= agreement
         explanation += f"; {sentence}"

@@ -70,10 +70,10 @@ def goal(final, parts: list[Record], models: list[dict], hybrid: dict, tried: li
                    f"the same {BENCHMARK.init_window}-sample window as the test ({evidence['test']:.2g} mm): the force "
                    f"it misses acts during the estimation run too, which has no external pulses. An integrating plant "
                    f"turns any such force error into a drift of the position")
-    agreement, sentence = agreement_evidence(validation_agreement(tried, "test"), "test", BENCHMARK.unit)
+    agreement, sentence = agreement_evidence(validation_agreement(tried, models, "test"), "test", BENCHMARK.unit)
     if agreement:
         evidence |= agreement
-        explanation += f". {sentence[0].upper()}{sentence[1:]}, so the figure moves with drift the validation cannot see"
+        explanation += f". {sentence[0].upper()}{sentence[1:]}"
     return goal_entry(BENCHMARK, models, hybrid, "model class", evidence, explanation)
 
 

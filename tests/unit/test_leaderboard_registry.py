@@ -124,19 +124,27 @@ def test_a_hypothesis_beside_the_diagnosis_is_fitted_scored_and_never_kept():
     assert failed["rmse"] is None and failed["hypothesis"].startswith("runaway (failed: ")
 
 
-def test_the_validation_agreement_is_the_rank_correlation_of_the_gains_with_the_test_figures():
-    def row(gain, figure, hypothesis="h"):
-        return {"stage": "rung 1", "place": None, "hypothesis": hypothesis, "validation_gain": gain,
-                "rmse": {"test": figure}, "kept": False, "named": False}
+def test_the_validation_agreement_compares_each_gain_with_the_test_gain_against_the_same_baseline():
+    """Rung 1's candidates against the physics (10 m on test), rung 2's and the probes against the final model (2 m):
+    each test gain against its own baseline, so that a first rung's large gains do not rank against a last rung's."""
+    def row(stage, gain, figure, hypothesis="h"):
+        return {"stage": stage, "place": "force" if stage == "probe" else None, "hypothesis": hypothesis,
+                "validation_gain": gain, "rmse": {"test": figure}, "kept": False, "named": False}
 
-    agreeing = [row(0.5, 1.0), row(0.3, 2.0), row(0.1, 3.0), row(None, None)]
-    assert validation_agreement(agreeing, "test")["rank_correlation"] == pytest.approx(-1.0)
-    against = validation_agreement([row(0.5, 3.0), row(0.3, 2.0), row(-0.7, 1.0, "best")], "test")
-    assert against["rank_correlation"] == pytest.approx(1.0) and against["hypotheses"] == 3
-    assert against["best_on_test"] == {"stage": "rung 1", "hypothesis": "best", "validation_gain": -0.7, "test": 1.0}
-    assert validation_agreement(agreeing[:2], "test")["rank_correlation"] is None  # too few to rank
-    evidence, sentence = agreement_evidence(against, "test", "mm")
-    assert evidence == {"rank_correlation": pytest.approx(1.0), "hypotheses": 3, "best_on_test": 1.0,
+    models = [{"rmse": {"test": 10.0}}, {"rmse": {"test": 2.0}}]
+    agreeing = [row("rung 1", 0.8, 2.0), row("rung 1", 0.3, 7.0), row("probe", 0.1, 1.8), row("probe", -0.2, 2.5),
+                row("probe", None, None)]
+    agreement = validation_agreement(agreeing, models, "test")
+    assert agreement["rank_correlation"] == pytest.approx(1.0) and agreement["agree"] == 4
+    assert agreement["hypotheses"] == 4
+    assert agreement["best_on_test"] == {"stage": "probe: force", "hypothesis": "h", "validation_gain": 0.1, "test": 1.8}
+    against = validation_agreement([row("probe", 0.3, 2.2), row("probe", 0.1, 2.1), row("probe", -0.7, 1.0, "best")],
+                                   models, "test")
+    assert against["rank_correlation"] == pytest.approx(-1.0) and against["agree"] == 0  # none helps on both
+    evidence, sentence = agreement_evidence(against, "test", "m")
+    assert evidence == {"rank_correlation": pytest.approx(-1.0), "agree": 0, "hypotheses": 3, "best_on_test": 1.0,
                         "best_on_test_validation_gain": -0.7}
-    assert "is +1.00" in sentence and "best (rung 1, 1 mm), gains -70.0 % on validation" in sentence
-    assert agreement_evidence(validation_agreement(agreeing[:2], "test"), "test", "mm") == ({}, "")
+    assert "agree on whether one helps for 0" in sentence and "is -1.00" in sentence
+    assert "best (probe: force, 1 m), gains -70.0 % on validation" in sentence
+    too_few = validation_agreement(agreeing[:2], models, "test")
+    assert too_few["rank_correlation"] is None and agreement_evidence(too_few, "test", "m") == ({}, "")

@@ -162,35 +162,48 @@ def hypothesis_entry(benchmark: Benchmark, stage: str, hypothesis: str, model, t
             "kept": False, "named": False}
 
 
-def validation_agreement(tried: list[dict], split: str) -> dict:
-    """Whether the validation chose as the test would have: over the rows of ``tried`` with a validation gain and a
-    figure on ``split``, the Spearman rank correlation of the gain with the test figure (-1: the larger the gain,
-    the lower the test error, every time; near 0 or above: the validation does not predict the test), how many
-    rows, and the row best on test (its stage, hypothesis, validation gain and figure)."""
-    rows = [row for row in tried if row["validation_gain"] is not None and row["rmse"] and
-            row["rmse"].get(split) is not None]
+def validation_agreement(tried: list[dict], models: list[dict], split: str) -> dict:
+    """Whether the validation chose as the test would have, over the rows of ``tried`` with a validation gain and a
+    figure on ``split``. Each row's test gain is measured as its validation gain is, against its own baseline: for
+    ``rung N`` the ladder's model before it (``models[N - 1]``), for the probes and the hypotheses beside the
+    diagnosis the final grey box (``models[-1]``), $1 - \text{figure} / \text{baseline's figure}$.
+    ``agree``: the rows whose two gains have the same sign (both help, or both do not); ``rank_correlation``: the
+    Spearman rank correlation of the two gains (+1: the validation orders the hypotheses as the test does);
+    ``best_on_test``: the row with the lowest test figure (its stage, hypothesis, validation gain and figure)."""
+    rows, validation_gains, test_gains = [], [], []
+    for row in tried:
+        if row["validation_gain"] is None or not row["rmse"] or row["rmse"].get(split) is None:
+            continue
+        before = models[int(row["stage"].split()[1]) - 1] if row["stage"].startswith("rung ") else models[-1]
+        rows.append(row)
+        validation_gains.append(row["validation_gain"])
+        test_gains.append(1.0 - row["rmse"][split] / before["rmse"][split])
     if len(rows) < 3:
-        return {"rank_correlation": None, "hypotheses": len(rows), "best_on_test": None}
-    correlation = float(spearmanr([row["validation_gain"] for row in rows], [row["rmse"][split] for row in rows])[0])
+        return {"rank_correlation": None, "agree": None, "hypotheses": len(rows), "best_on_test": None}
     best = min(rows, key=lambda row: row["rmse"][split])
-    return {"rank_correlation": correlation, "hypotheses": len(rows),
+    return {"rank_correlation": float(spearmanr(validation_gains, test_gains)[0]),
+            "agree": sum((v > 0) == (t > 0) for v, t in zip(validation_gains, test_gains, strict=True)),
+            "hypotheses": len(rows),
             "best_on_test": {"stage": best["stage"] if best["place"] is None else f"probe: {best['place']}",
                              "hypothesis": best["hypothesis"], "validation_gain": best["validation_gain"],
                              split: best["rmse"][split]}}
 
 
 def agreement_evidence(agreement: dict, split: str, unit: str) -> tuple[dict[str, float], str]:
-    """:func:`validation_agreement`'s figures for a goal's ``evidence`` (``rank_correlation``, ``hypotheses``,
-    ``best_on_test``, ``best_on_test_validation_gain``) and its sentence; none where too few hypotheses had both."""
+    """:func:`validation_agreement`'s figures for a goal's ``evidence`` (``rank_correlation``, ``agree``,
+    ``hypotheses``, ``best_on_test``, ``best_on_test_validation_gain``) and its sentence; none where too few
+    hypotheses had both gains."""
     best = agreement["best_on_test"]
     if best is None:
         return {}, ""
-    evidence = {"rank_correlation": agreement["rank_correlation"], "hypotheses": agreement["hypotheses"],
-                "best_on_test": best[split], "best_on_test_validation_gain": best["validation_gain"]}
-    return evidence, (f"over the {agreement['hypotheses']} hypotheses tried, the rank correlation of the validation "
-                      f"gain with the test figure is {agreement['rank_correlation']:+.2f} (-1: the validation would "
-                      f"pick the test's best); the best on test, {best['hypothesis']} ({best['stage']}, "
-                      f"{best[split]:.3g} {unit}), gains {100 * best['validation_gain']:.1f} % on validation")
+    evidence = {"rank_correlation": agreement["rank_correlation"], "agree": agreement["agree"],
+                "hypotheses": agreement["hypotheses"], "best_on_test": best[split],
+                "best_on_test_validation_gain": best["validation_gain"]}
+    return evidence, (f"over the {agreement['hypotheses']} hypotheses tried, the validation and the test agree on "
+                      f"whether one helps for {agreement['agree']}, and the rank correlation of their gains is "
+                      f"{agreement['rank_correlation']:+.2f} (+1: the validation orders them as the test does); the "
+                      f"best on test, {best['hypothesis']} ({best['stage']}, {best[split]:.3g} {unit}), gains "
+                      f"{100 * best['validation_gain']:.1f} % on validation")
 
 
 def write_result(out: Path, result: dict, verdict: str) -> dict:
