@@ -46,6 +46,13 @@ MAX_SPILL_RATE = 0.25
 FREE_SPILL_RATE = 1000.0
 
 
+def levels_in_range(records) -> list[dict[str, float]]:
+    """The starts of an effect that acts above a ``level``: its own, then the measured output's 90th and 75th
+    percentiles, where it acts on the fitted output."""
+    y = torch.cat([r.y.flatten() for r in records])
+    return [{}, *({"level": float(torch.quantile(y, q))} for q in (0.9, 0.75))]
+
+
 class TwoTanks(AbstractPhysics):
     """Two cascaded tanks with linear outflows (module docstring). State (batch, 2) = (upper, lower).
 
@@ -169,8 +176,7 @@ class SensorClip(AbstractEffect):
         ], learn)
 
     def starts(self, records):
-        y = torch.cat([r.y.flatten() for r in records])
-        return [{}, *({"level": float(torch.quantile(y, q))} for q in (0.9, 0.75))]
+        return levels_in_range(records)
 
     def output_map(self, y):
         return y - self.w * (y - self.level).clamp(min=0)
@@ -198,8 +204,7 @@ class LowerOverflow(AbstractEffect):
         ], learn)
 
     def starts(self, records):
-        y = torch.cat([r.y.flatten() for r in records])
-        return [{}, *({"level": float(torch.quantile(y, q))} for q in (0.9, 0.75))]
+        return levels_in_range(records)
 
     def rate(self, physics, x, u):
         return self.on_state(physics, x, {"lower": -self.c * (x[..., 1] - self.level).clamp(min=0)})
