@@ -26,6 +26,8 @@ from torchpaml._fit.initial_state import InitialState, Rest
 from torchpaml._fit.physics_fit import estimate_initial_state
 from torchpaml._leaderboard.protocols import periodic_twice
 from torchpaml._errors import ConfigurationError
+from torchpaml._physics.base import AbstractPhysics
+from torchpaml._physics.effect import AbstractEffect
 from torchpaml._simulate.solvers import Auto, Solver
 
 __all__ = ["Benchmark", "Published"]
@@ -61,7 +63,7 @@ class Benchmark:
         published: the published figures the leaderboard sets ours beside.
         experiment: the script that runs the protocol, relative to the repository, and ``arguments``, what the
             leaderboard passes it beside ``--out``; ``None``: the registry's own protocol runs it
-            (:func:`~torchpaml._leaderboard.protocol.run`), from ``model``, ``candidates`` and ``initial_state``:
+            (:func:`~torchpaml._leaderboard.runner.run_benchmark`), from ``model``, ``candidates`` and ``initial_state``:
             then the benchmark is its entry file and its data.
         model: builds the physics the diagnosis starts from, given the training part (a start from its frequency
             response, say); for the registry's own protocol.
@@ -92,8 +94,8 @@ class Benchmark:
     arguments: tuple[str, ...] = ()
     hold: str | None = None
     velocity: str | None = None
-    model: Callable[[Record], object] | None = None
-    candidates: Callable[[], list] | None = None
+    model: Callable[[Record], AbstractPhysics] | None = None
+    candidates: Callable[[], list[AbstractEffect]] | None = None
     initial_state: InitialState = field(default_factory=Rest)
 
     def __post_init__(self):

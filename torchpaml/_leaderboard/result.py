@@ -36,7 +36,7 @@ from torchpaml._diagnostics.results import ModelScore
 from torchpaml._data import Record
 from torchpaml._data.simulation import simulate_record
 from torchpaml._diagnostics.ranking.scoring import score_model
-from torchpaml._errors import DomainError, SimulationError
+from torchpaml._errors import ConfigurationError, DomainError, SimulationError
 from torchpaml._fit.initial_state import InitialState
 from torchpaml._fit.physics_fit import fit_physics
 from torchpaml._leaderboard.benchmark import Benchmark
@@ -145,6 +145,9 @@ def hypothesis_entry(benchmark: Benchmark, stage: str, hypothesis: str, model, t
     as the diagnosis scores a candidate (``validation_gain`` over ``baseline``'s mismatch; ``None`` otherwise).
     Never kept: the diagnosis' final grey box stays the benchmark's model. Where its fit or its validation score
     blows up (a :class:`~torchpaml.SimulationError`), the row says so, without figures. Printed."""
+    if validation and baseline is None:
+        raise ConfigurationError("a hypothesis scored on validation needs the baseline its gain is measured against "
+                                 "(baseline=, the final grey box's ModelScore)")
     try:
         fit = fit_physics(model, train, initial_state=initial_state, start_states=start_states)
         gain = None if not validation else 1.0 - score_model(
@@ -163,7 +166,7 @@ def hypothesis_entry(benchmark: Benchmark, stage: str, hypothesis: str, model, t
 
 
 def validation_agreement(tried: list[dict], models: list[dict], split: str) -> dict:
-    """Whether the validation chose as the test would have, over the rows of ``tried`` with a validation gain and a
+    r"""Whether the validation chose as the test would have, over the rows of ``tried`` with a validation gain and a
     figure on ``split``. Each row's test gain is measured as its validation gain is, against its own baseline: for
     ``rung N`` the ladder's model before it (``models[N - 1]``), for the probes and the hypotheses beside the
     diagnosis the final grey box (``models[-1]``), $1 - \text{figure} / \text{baseline's figure}$.
