@@ -44,8 +44,8 @@ from pathlib import Path
 from tanks import (FREE_SPILL_RATE, MAX_SPILL_RATE, LowerOverflow, SensorClip, SensorOffset, TorricelliOutflow,
                    TwoTanks, UpperOverflow)
 
-from torchpaml import (DeadZone, Discoverer, Estimate, ModelScore, OutputSaturation, Record, diagnose, fit_physics,
-                       simulate_record, write_report)
+from torchpaml import (Budget, DeadZone, Discoverer, Estimate, ModelScore, OutputSaturation, Record, diagnose,
+                       fit_physics, simulate_record, write_report)
 from torchpaml.cli.progress import progress_lines
 from torchpaml.leaderboard import (SCHEMA_VERSION, agreement_evidence, benchmark, goal_entry, hybrid_entry,
                                    hypothesis_entry, ladder_entries, tried_entries, validation_agreement, with_effect,
@@ -71,7 +71,9 @@ def free_spill(final: ModelScore, train: Record, tests: dict[str, Record]) -> di
     start, bounded = time.perf_counter(), final.model.effects["upper_overflow"]
     values = {name: float(getattr(bounded, name).detach()) for name in ("c", "h", "s")}
     free = with_effect(final.model, UpperOverflow(**values, max_rate=FREE_SPILL_RATE))
-    fit = fit_physics(free, [train], initial_state=Estimate(), start_states=final.train_states, ftol=1e-8)
+    progress = Budget(f"refitting {final.name} with the spill rate free (up to {FREE_SPILL_RATE:g} 1/s)")
+    fit = fit_physics(free, [train], initial_state=Estimate(), start_states=final.train_states, ftol=1e-8,
+                      budget=progress)  # no limit: the budget prints its progress lines
     return {"rate": float(free.effects["upper_overflow"].c.detach()), "solver": type(fit.solver).__name__,
             "rmse": {name: BENCHMARK.score(free, record, solver=fit.solver, train_state=fit.initial_states[0])
                      for name, record in tests.items()},

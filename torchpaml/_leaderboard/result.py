@@ -30,6 +30,7 @@ from pathlib import Path
 import torch
 from scipy.stats import spearmanr
 
+from torchpaml._budget import Budget
 from torchpaml._diagnostics.analysis.adequacy import Adequacy
 from torchpaml._diagnostics.diagnosis import Diagnosis, hybrid_residual
 from torchpaml._diagnostics.results import ModelScore
@@ -149,7 +150,8 @@ def hypothesis_entry(benchmark: Benchmark, stage: str, hypothesis: str, model, t
         raise ConfigurationError("a hypothesis scored on validation needs the baseline its gain is measured against "
                                  "(baseline=, the final grey box's ModelScore)")
     try:
-        fit = fit_physics(model, train, initial_state=initial_state, start_states=start_states)
+        fit = fit_physics(model, train, initial_state=initial_state, start_states=start_states,
+                          budget=Budget(f"{stage}: fitting {hypothesis}"))  # no limit: its progress lines
         gain = None if not validation else 1.0 - score_model(
             model, fit, list(validation), initial_state=initial_state).nrmse_validation / baseline.nrmse_validation
     except SimulationError as error:  # as the ranking's refits: a fit or a validation score that blows up
