@@ -20,16 +20,16 @@ from torchpaml._errors import ConfigurationError
 from torchpaml._leaderboard.benchmark import Benchmark, Published
 from torchpaml._leaderboard.protocols import noise_floor, periodic_twice, with_effect
 from torchpaml._leaderboard.registry import BENCHMARKS, benchmark
-from torchpaml._leaderboard.result import (LIMITS, SCHEMA_VERSION, agreement_evidence, arguments, goal_entry, hybrid_entry,
-                                           hypothesis_entry, ladder_entries, tried_entries, validation_agreement,
-                                           write_result)
+from torchpaml._leaderboard.result import (LIMITS, SCHEMA_VERSION, agreement_evidence, arguments, goal_entry,
+                                           hybrid_entry, hypothesis_entry, ladder_entries, tried_entries,
+                                           validation_agreement, write_result)
 from torchpaml._leaderboard.runner import diagnosed_goal, run_benchmark
 from torchpaml.cli.progress import progress_lines
 
 __all__ = ["BENCHMARKS", "Benchmark", "LIMITS", "Published", "SCHEMA_VERSION", "agreement_evidence", "arguments",
-           "benchmark",
-           "diagnosed_goal", "goal_entry", "hybrid_entry", "hypothesis_entry", "ladder_entries", "noise_floor", "periodic_twice",
-           "run_benchmark", "tried_entries", "validation_agreement", "with_effect", "write_result"]
+           "benchmark", "diagnosed_goal", "goal_entry", "hybrid_entry", "hypothesis_entry", "ladder_entries",
+           "noise_floor", "periodic_twice", "run_benchmark", "tried_entries", "validation_agreement", "with_effect",
+           "write_result"]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -131,8 +131,9 @@ def tried_entries(benchmark: Benchmark, diagnosis: Diagnosis, tests: dict[str, R
     probes = diagnosis.probes
     best = None if probes is None else probes.best
     for row in [] if probes is None else probes.rows:
+        rmse = None if row.score is None else benchmark.scores(row.score, tests)
         rows.append({"stage": "probe", "place": row.place, "hypothesis": row.fitted or f"— ({row.note.split(';')[0]})",
-                     "validation_gain": row.gain, "rmse": None if row.score is None else benchmark.scores(row.score, tests),
+                     "validation_gain": row.gain, "rmse": rmse,
                      "kept": False, "named": row is best})
     return rows
 
