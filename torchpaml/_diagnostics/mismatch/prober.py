@@ -177,9 +177,9 @@ def _from_far_strength(effects: list, first: ModelScore, ranking: Ranking, train
     """Each of ``effects`` that has a ``far_strength``, refitted from it on ``first``'s physics (as a shortlisted
     refit, within its budget) and scored on validation: options of its place (``(score, fitted, note)``)."""
     options = []
+    refits = Refits(first.model.display_name, train, validation, first.estimate, first, ranking.rule,
+                    ranking.initial_state, ranker.max_nfev, template)
     for effect in (e for e in effects if e.far_strength is not None):
-        refits = Refits(first.model.display_name, train, validation, first.estimate, first, ranking.rule,
-                        ranking.initial_state, ranker.max_nfev, template)
         entry = EffectEvidence(effect.name, effect.equation, 0.0, 1, effect.far_strength,
                                refit_reason="refitted from its far strength on the physics alone")
         extended = copy.deepcopy(first.model) + copy.deepcopy(effect)
