@@ -16,7 +16,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from torchpaml._errors import ConfigurationError
+from torchpaml._errors import TorchpamlError
 from torchpaml._leaderboard.benchmark import Benchmark, Published
 from torchpaml._leaderboard.protocols import noise_floor, periodic_twice, with_effect
 from torchpaml._leaderboard.registry import BENCHMARKS, benchmark
@@ -48,8 +48,8 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 with progress_lines(entry.name):
                     run_benchmark(entry, args.results / entry.name, args.data / entry.folder)
-            except ConfigurationError as error:
-                print(f"{entry.name}: {error}", file=sys.stderr)
+            except TorchpamlError as error:  # missing files, bad records, a physics that blows up: said, not raised
+                print(f"{entry.name}: {type(error).__name__}: {error}", file=sys.stderr)
                 return 2
             continue
         command = [sys.executable, entry.experiment, "--out", str(args.results / entry.name), *entry.arguments]

@@ -56,3 +56,16 @@ def test_missing_data_and_an_entry_without_a_model_or_a_script_are_refused(tmp_p
     assert "lacks train.csv, test.csv; point --data at the Duffing data" in capsys.readouterr().err
     with pytest.raises(ValueError, match="give either an experiment script or a model"):
         duffing_benchmark(experiment="experiments/duffing/run.py")
+
+
+def test_a_bad_record_is_said_with_its_fix_and_a_nonzero_exit(data, tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(BENCHMARKS, "duffing", duffing_benchmark())
+    path = data / "duffing" / "train.csv"
+    lines = path.read_text().splitlines()
+    first = 1 + lines[0].startswith("#")  # the metadata line, then the header
+    lines[first + 40] = ",".join(lines[first + 40].split(",")[:-1] + ["nan"])
+    path.write_text("\n".join(lines) + "\n")
+    assert main(["--results", str(tmp_path / "results"), "--data", str(data), "--only", "duffing"]) == 2
+    error = capsys.readouterr().err
+    assert "duffing: DataError: record 'train': column 'y' has 1 NaN/inf value(s), first at row 40" in error
+    assert "drop or interpolate those samples" in error

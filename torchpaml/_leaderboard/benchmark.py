@@ -22,7 +22,7 @@ import torch
 from torchpaml._data import Record
 from torchpaml._data.simulation import record_states, simulate_record
 from torchpaml._diagnostics.results import ModelScore
-from torchpaml._fit.initial_state import InitialState, Rest
+from torchpaml._fit.initial_state import Estimate, InitialState
 from torchpaml._fit.physics_fit import estimate_initial_state
 from torchpaml._leaderboard.protocols import periodic_twice
 from torchpaml._errors import ConfigurationError
@@ -68,7 +68,8 @@ class Benchmark:
         model: builds the physics the diagnosis starts from, given the training part (a start from its frequency
             response, say); for the registry's own protocol.
         candidates: the effects the diagnosis ranks (default: :func:`~torchpaml.default_effects`).
-        initial_state: each record's initial state in the fits: ``Rest()`` or ``Estimate()``.
+        initial_state: each record's initial state in the fits of the registry's protocol: ``Estimate()`` (the
+            default: the validation part starts inside the training record, not at rest) or ``Rest()``.
         steady_state: the splits scored in their periodic steady state.
         hold: how the input moved between samples (``None``: the file's metadata, else ``foh``).
         velocity: the model's state that is the output's rate, scored beside the output (module docstring);
@@ -96,7 +97,7 @@ class Benchmark:
     velocity: str | None = None
     model: Callable[[Record], AbstractPhysics] | None = None
     candidates: Callable[[], list[AbstractEffect]] | None = None
-    initial_state: InitialState = field(default_factory=Rest)
+    initial_state: InitialState = field(default_factory=Estimate)
 
     def __post_init__(self):
         if (self.experiment is None) == (self.model is None):
