@@ -29,12 +29,15 @@ def _model(policy=Rest(), std=None) -> FittedModel:
 
 def test_the_band_of_the_gain_is_its_analytic_form():
     """The output is linear in the gain: dy/dgain = y / gain, so the band is y +- z std |y| / gain (z = 1.96 at 95 %).
-    The Jacobian is the solver's (central differences of RK4 at 4 substeps): 1e-6 relative."""
+    The Jacobian is the solver's (central differences of RK4 at 4 substeps), whose error scales with the output's
+    size, not with each sample's: within 1e-6 of the band's largest half-width at every sample (near the output's
+    zero crossings a bound relative to the sample itself depends on the machine's rounding)."""
     record = _record()
     prediction = predict(_model(std={"gain": 0.15}), record, level=0.95)
     half = 1.959963984540054 * 0.15 * prediction.y.abs() / 3.0
-    assert torch.allclose(prediction.upper - prediction.y, half, rtol=1e-6, atol=1e-12)
-    assert torch.allclose(prediction.y - prediction.lower, half, rtol=1e-6, atol=1e-12)
+    tolerance = 1e-6 * float(half.max())
+    assert float((prediction.upper - prediction.y - half).abs().max()) <= tolerance
+    assert float((prediction.y - prediction.lower - half).abs().max()) <= tolerance
     assert prediction.level == 0.95
 
 

@@ -41,10 +41,10 @@ def _numpy_kalman(A: np.ndarray, C: np.ndarray, y: np.ndarray, x0, P0, R: float)
 
 
 def test_the_filter_is_the_textbook_kalman_filter_on_linear_physics():
-    """Oscillator (linear), unknown initial state (prior variance 1): innovations and NIS agree with a numpy Kalman
-    filter to 1e-10 relative."""
+    """Oscillator (linear), a start at rest with prior variance 1 (the device is elsewhere), no process noise:
+    innovations and NIS agree with a numpy Kalman filter to 1e-10 relative."""
     model, record = _linear_record(noise=0.01)
-    tracker = Tracker(model, initial_variance=1.0)
+    tracker = Tracker(model, x0=(0.0, 0.0), initial_variance=1.0, process=(0.0, 0.0))
     tracking = tracker.feed(record)
     A, _, C, _ = model.physics.state_space()
     innovations, nis = _numpy_kalman(A.detach().numpy(), C.detach().numpy(), record.y.numpy(), (0.0, 0.0), np.eye(2), 0.01**2)
@@ -57,7 +57,7 @@ def test_the_filter_is_the_textbook_kalman_filter_on_linear_physics():
 def test_with_a_known_start_and_no_process_noise_the_innovation_is_the_output_error():
     """P = 0 stays 0: the filter runs the model open loop, so y - innovation is the model's own simulation."""
     model, record = _linear_record(noise=0.02, u_scale=1.0, x0=(0.0, 0.0))
-    tracking = track(model, record)
+    tracking = track(model, record, x0=(0.0, 0.0))
     assert np.allclose(record.y.numpy()[:, 0] - tracking.innovation[:, 0], model.simulate(record).numpy()[:, 0],
                        rtol=0, atol=1e-12)
     assert tracking.alarms == [] and tracking.innovation_rms["y"] == pytest.approx(0.02, rel=0.05)

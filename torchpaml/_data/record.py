@@ -59,8 +59,11 @@ class Record:
         columns = [("t", self.t[:, None])] + [(name, values[:, [i]]) for letter, key, values in (
             ("u", "inputs", self.u), ("y", "outputs", self.y)) for i, name in enumerate(_column_names(
                 self.metadata.get(key), letter, values.shape[1]))]
+        gaps = bool(self.metadata.get("missing_outputs"))
         for column, values in columns:
             bad = ~torch.isfinite(values[:, 0])
+            if gaps and column not in ("t", *_column_names(self.metadata.get("inputs"), "u", self.u.shape[1])):
+                bad = torch.isinf(values[:, 0])  # a missing output sample (NaN) is allowed where the metadata says so
             if bool(bad.any()):
                 row = int(bad.nonzero()[0])
                 raise DataError(
@@ -131,7 +134,8 @@ class Record:
     # -- I/O ---------------------------------------------------------------------------------
     @classmethod
     def from_csv(cls, path: str | Path, name: str | None = None, hold: str | None = None,
-                 channels: tuple[Sequence[str], Sequence[str]] | None = None, with_outputs: bool = True) -> Record:
+                 channels: tuple[Sequence[str], Sequence[str]] | None = None, with_outputs: bool = True,
+                 missing_outputs: bool = False) -> Record:
         """Read a CSV whose header holds ``t`` and the channels (a first ``# {json}`` line is metadata; extra columns
         are ignored):
 
@@ -144,7 +148,10 @@ class Record:
         ``hold``: how the input moved between samples; default the metadata's ``"hold"``, else ``"foh"``.
         ``with_outputs=False``: a file of inputs alone (a model's prediction needs no outputs): where its output
         columns are missing, ``y`` is zeros, one column per expected output, and the metadata says
-        ``"outputs_missing": true``."""
+        ``"outputs_missing": true``.
+        ``missing_outputs=True``: a stream whose output cells may be empty or NaN (a measurement that did not
+        arrive; a tracker predicts through it): they are read as NaN, and the metadata's ``"missing_outputs"`` counts
+        the samples with one (a fit refuses such a record); time and inputs must still be numbers."""
         path = Path(path)
         if not path.exists():
             raise DataError(f"no such file: {path}" + ("" if path.is_absolute() else f" (in the folder {Path.cwd()})"))
@@ -170,13 +177,17 @@ class Record:
         if not rows:
             raise DataError(f"{path} has a header but no data rows")
         try:
-            table = np.array([[float(v) for v in r.split(",")] for r in rows], dtype=np.float64)
+            table = np.array([[float(v) if v.strip() or not missing_outputs else np.nan for v in r.split(",")]
+                              for r in rows], dtype=np.float64)
         except ValueError as err:
             raise DataError(f"{path}: a value is not a number ({err}); every cell must parse as a float") from None
         if table.ndim != 2 or table.shape[1] != len(header):
             raise DataError(f"{path}: every row must have {len(header)} values like the header")
         columns = {h: table[:, i] for i, h in enumerate(header)}
         columns.update({name: np.zeros(len(table)) for name in outputs if missing})
+        gaps = int(np.isnan(np.stack([columns[c] for c in outputs], axis=1)).any(axis=1).sum())
+        if missing_outputs and gaps:
+            metadata = {**metadata, "missing_outputs": gaps}
         return cls(columns["t"], np.stack([columns[c] for c in inputs], axis=1),
                    np.stack([columns[c] for c in outputs], axis=1), name or path.stem, metadata,
                    hold or metadata.get("hold", "foh"))

@@ -13,6 +13,7 @@ prints this one closed form.
 
 from __future__ import annotations
 
+import keyword
 import re
 from dataclasses import dataclass
 
@@ -26,10 +27,18 @@ from torchpaml._physics.base import AbstractPhysics
 __all__ = ["ClosedForm", "closed_form", "identifier"]
 
 
+#: C's reserved words (C99 and its common headers' names the generated code uses), which no variable may take.
+C_RESERVED = frozenset("""auto break case char const continue default do double else enum extern float for goto if
+inline int long register restrict return short signed sizeof static struct switch typedef union unsigned void volatile
+while _Bool _Complex _Imaginary math sqrt exp sin cos tanh fabs pow copysign""".split())
+
+
 def identifier(name: str) -> str:
-    """``name`` as an identifier of Python and C (``cubic_stiffness.z`` -> ``cubic_stiffness_z``)."""
-    text = re.sub(r"\W", "_", name)
-    return text if text and not text[0].isdigit() else f"_{text}"
+    """``name`` as an identifier of Python and C (``cubic_stiffness.z`` -> ``cubic_stiffness_z``); a reserved word
+    of either language gets a trailing ``_`` (``if`` -> ``if_``)."""
+    text = re.sub(r"\W", "_", name, flags=re.ASCII)
+    text = text if text and not text[0].isdigit() else f"_{text}"
+    return f"{text}_" if keyword.iskeyword(text) or text in C_RESERVED else text
 
 
 @dataclass(frozen=True)

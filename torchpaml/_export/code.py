@@ -24,6 +24,8 @@ from torchpaml._errors import ConfigurationError
 from torchpaml._export.closed_form import ClosedForm, closed_form
 from torchpaml._export.residual_step import ResidualStep, residual_step
 from torchpaml._fit.fitted_model import FittedModel
+from torchpaml._grid import check_hold
+from torchpaml._text import inert_comment
 
 __all__ = ["ExportedStep", "c_code", "c_unpacking", "exported_step", "latex_code", "python_code"]
 
@@ -82,7 +84,10 @@ def exported_step(model: FittedModel) -> ExportedStep:
             raise ConfigurationError("cannot export the residual without the records' sampling interval (its filter is "
                                      "discretised at it): save the hybrid from a diagnosis, or give FittedModel(step=)")
         residual = residual_step(model.residual, form.inputs, model.step)
-    return ExportedStep(form, _substeps(model), model.hold, model.physics.equation(), residual)
+    # the equation and the hold are printed into comments and docstrings: inert text and a known hold, whatever the
+    # model's classes hold
+    return ExportedStep(form, _substeps(model), check_hold(model.hold), inert_comment(model.physics.equation()),
+                        residual)
 
 
 def _assignments(printer, names, expressions, indent: str, terminator: str = "") -> list[str]:

@@ -6,9 +6,17 @@ code.
 parameters), the solver's fields, the channels' names, the records' hold, sampling interval and residual RMS, the
 initial-state policy, the parameters' uncertainty, the library's version and a SHA-256 digest of all of it.
 :func:`load_model` reads it with ``torch.load(weights_only=True)`` (tensors and plain containers only: a file that
-carries code is refused by torch itself), checks the digest and the version, imports each class by its path and
-builds the model again; its parameters are the saved ones bit for bit. Each refusal is one line: a file from a newer
-torchpaml, a class that cannot be imported, a file changed after it was written.
+carries code is refused by torch itself), checks the digest and the version, then checks what the file names
+before anything is built: every class lies in torchpaml or in a package the caller trusts (``trust=("mypkg",)``,
+``--trust mypkg``; judged on the class path's text, so an untrusted module is never imported), every string is
+plain text (:func:`~torchpaml._text.check_plain_text`: nothing that could end a comment in the generated C or
+Python), the hold is one of the library's, the channels' names are identifiers. Then it imports each class by its
+path and builds the model again; its parameters are the saved ones bit for bit. Each refusal is one line: a file
+from a newer torchpaml, a class outside the trusted packages or one that cannot be imported, text that is not plain,
+a file changed after it was written.
+
+The SHA-256 digest has no key: it catches a file damaged or edited by hand, not a forger, who recomputes it. What
+keeps a forged file harmless is the checks above: a model file is data, and loading it runs no code of its own.
 """
 
 from __future__ import annotations
@@ -16,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 from importlib.metadata import PackageNotFoundError, version
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +34,8 @@ from torchpaml._errors import ConfigurationError
 from torchpaml._fit.fitted_model import FittedModel
 from torchpaml._fit.initial_state import policy_named
 from torchpaml._fit.uncertainty import Uncertainty
-from torchpaml._model.spec import built_module, built_solver, module_spec, solver_spec
+from torchpaml._grid import check_hold
+from torchpaml._model.spec import built_module, built_solver, check_classes, check_trust, module_spec, solver_spec
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._residual.base import AbstractResidual
 
@@ -125,13 +135,26 @@ def _read(path: Path) -> dict:
     return stored
 
 
-def load_model(path: str | Path) -> FittedModel:
+def _check_names(content: dict) -> None:
+    """The hold is one of the library's and every channel name an identifier (module docstring)."""
+    check_hold(content["hold"])
+    for what in ("inputs", "outputs"):
+        bad = [n for n in content[what] if not (isinstance(n, str) and n.isidentifier())]
+        if bad:
+            raise ConfigurationError(f"the model file names its {what} {bad}, which are not identifiers (letters, "
+                                     "digits, _); the file was not written by torchpaml.save_model or was changed")
+
+
+def load_model(path: str | Path, trust: Sequence[str] = ()) -> FittedModel:
     """The :class:`~torchpaml.FittedModel` saved at ``path`` (module docstring), its parameters bit for bit.
 
+    ``trust``: the packages whose classes the file may name besides torchpaml's (a user's own physics, e.g.
+    ``("mypkg",)``); a class elsewhere is refused before its module is imported.
+
     Raises :class:`~torchpaml.ConfigurationError` in one line for a file that is not a model file, one changed after
-    it was written, one from a newer torchpaml or of a later format, or one that names a class that cannot be
-    imported."""
-    path = Path(path)
+    it was written, one from a newer torchpaml or of a later format, one that names a class outside the trusted
+    packages or one that cannot be imported, or one whose text is not plain."""
+    path, trust = Path(path), check_trust(trust)
     stored = _read(path)
     content = stored["content"]
     if _checksum(content) != stored["sha256"]:
@@ -141,12 +164,14 @@ def load_model(path: str | Path) -> FittedModel:
     if content["format"] > FORMAT or _release(written) > _release(here):
         raise ConfigurationError(f"{path} was written by torchpaml {written} (file format {content['format']}); this "
                                  f"is torchpaml {here} (format {FORMAT}): upgrade torchpaml to load it")
-    physics = built_module(content["physics"])
-    residual = None if content["residual"] is None else built_module(content["residual"])
+    check_classes(content, trust)
+    _check_names(content)
+    physics = built_module(content["physics"], trust)
+    residual = None if content["residual"] is None else built_module(content["residual"], trust)
     if not isinstance(physics, AbstractPhysics) or not (residual is None or isinstance(residual, AbstractResidual)):
         raise ConfigurationError(f"{path} does not hold a physics (and a residual); it was not written by "
                                  "torchpaml.save_model")
-    return FittedModel(physics, built_solver(content["solver"]), residual, tuple(content["inputs"]),
+    return FittedModel(physics, built_solver(content["solver"], trust), residual, tuple(content["inputs"]),
                        tuple(content["outputs"]), content["hold"], policy_named(content["initial_state"]),
                        _built_uncertainty(content["uncertainty"]), content.get("step"),
                        tuple(content.get("noise", ())))

@@ -27,6 +27,7 @@ from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._fit.fitted_model import FittedModel
 from torchpaml._fit.physics_fit import estimate_initial_state
 from torchpaml._fit.uncertainty import constraint_slopes
+from torchpaml._physics.checks import check_channels as check_physics_channels
 from torchpaml._simulate.solvers import Auto
 
 __all__ = ["Prediction", "check_channels", "initial_state_of", "output_std", "predict"]
@@ -53,14 +54,16 @@ class Prediction:
 
 
 def check_channels(model: FittedModel, record: Record) -> None:
-    """Refuse ``record`` where its inputs are not the model's (their number, or their names where both name them)."""
-    inputs = model.physics.input_dim
-    if record.u.shape[1] != inputs:
-        raise DataError(f"record {record.name!r} has {record.u.shape[1]} input column(s); the model takes {inputs} "
-                        f"({', '.join(model.inputs) or 'u'})")
-    if model.inputs and record.input_names != list(model.inputs):
-        raise DataError(f"record {record.name!r} names its inputs {record.input_names}; the model was fitted on "
-                        f"{list(model.inputs)}: rename the columns, or declare them in the file's metadata line")
+    """Refuse ``record`` where its channels are not the model's: the library's record check
+    (:func:`~torchpaml._physics.checks.check_channels`: the inputs and outputs by count, and by name where the physics
+    names them), then the names the model was fitted on, where both the model and the record name them."""
+    check_physics_channels(model.physics, record, missing=True)
+    for what, names, given in (("inputs", model.inputs, record.input_names),
+                               ("outputs", model.outputs, record.output_names)):
+        declared = what in record.metadata or what == "inputs"  # a record's default output name says nothing
+        if names and declared and given != list(names):
+            raise DataError(f"record {record.name!r} names its {what} {given}; the model was fitted on {list(names)}: "
+                            "rename the columns, or declare them in the file's metadata line")
 
 
 def _estimated(model: FittedModel, record: Record) -> torch.Tensor:

@@ -4,8 +4,10 @@
 its ``class_path`` (``module.Class``), the arguments it was built with (a module among them described the same way),
 the plain attributes of it and of each of its submodules (an effect placed by ``on("v2")`` keeps its new name), its
 parameters' constraints and learnable flags, and its ``state_dict`` (the raw parameters, bit for bit).
-:func:`built_module` imports the class by its path, calls it with the arguments, sets the attributes, the
-constraints and the flags, and loads the state. A solver (a frozen dataclass) is its class path and fields
+:func:`built_module` checks the spec first (every class path names torchpaml or a package the caller trusts,
+checked before anything is imported; every string is plain text, :func:`~torchpaml._text.check_plain_text`; every
+parameter name a dotted identifier), then imports the class by its path, calls it with the arguments, sets the
+attributes, the constraints and the flags, and loads the state. A solver (a frozen dataclass) is its class path and fields
 (:func:`solver_spec`, :func:`built_solver`). Nothing here unpickles: the data are numbers, strings, lists, dicts
 and tensors, which ``torch.load(weights_only=True)`` reads.
 """
@@ -14,6 +16,8 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import re
+from collections.abc import Sequence
 from typing import Any
 
 import torch
@@ -23,9 +27,11 @@ from torchpaml._arguments import Rebuildable, built_with
 from torchpaml._errors import ConfigurationError
 from torchpaml._parameters import Interval, constrain, declared
 from torchpaml._simulate.solvers import Solver
+from torchpaml._text import check_plain_text
 
-__all__ = ["built_module", "built_solver", "class_named", "module_spec", "solver_spec"]
+__all__ = ["built_module", "built_solver", "check_classes", "check_trust", "class_named", "module_spec", "solver_spec", "trusted"]
 
+_DOTTED = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 #: Plain values a model file keeps as they are.
 PLAIN = (bool, int, float, str, type(None))
 
@@ -34,8 +40,33 @@ def _path(cls: type) -> str:
     return f"{cls.__module__}.{cls.__qualname__}"
 
 
-def class_named(path: str, kind: type) -> type:
-    """The class ``module.Class`` at ``path``, which must derive from ``kind``; a missing one is refused in one line."""
+def trusted(path: str, trust: tuple[str, ...]) -> bool:
+    """Whether the class path ``path`` lies in torchpaml or in a package of ``trust`` (``"mypkg"`` allows
+    ``mypkg.physics.Device``), judged on the text alone."""
+    return any(path.startswith(f"{package}.") for package in ("torchpaml", *trust))
+
+
+def check_trust(trust: Sequence[str]) -> tuple[str, ...]:
+    """``trust`` as a tuple of dotted package names; a name that is not one is refused in one line."""
+    trust = (trust,) if isinstance(trust, str) else tuple(trust)
+    bad = [t for t in trust if not (isinstance(t, str) and _DOTTED.fullmatch(t))]
+    if bad:
+        raise ConfigurationError(f"trust names packages (trust=('mypkg',), --trust mypkg), got {bad}")
+    return trust
+
+
+def class_named(path: str, kind: type, trust: tuple[str, ...] = ()) -> type:
+    """The class ``module.Class`` at ``path``, which must derive from ``kind``. A path outside torchpaml and the
+    ``trust``ed packages is refused before its module is imported (importing runs the module's code); a missing
+    class is refused in one line."""
+    if not (isinstance(path, str) and _DOTTED.fullmatch(path)):
+        raise ConfigurationError(f"the model file names the class {str(path)[:60]!r}, which is not a class path "
+                                 "(module.Class); the file was not written by torchpaml.save_model or was changed")
+    if not trusted(path, trust):
+        package = path.split(".")[0]
+        raise ConfigurationError(f"the model file names the class {path}, outside torchpaml; loading it would import "
+                                 f"and run the package {package!r}: if you trust it, allow it with "
+                                 f"load_model(path, trust=({package!r},)) or --trust {package}")
     module, _, name = path.rpartition(".")
     try:
         cls = getattr(importlib.import_module(module), name)
@@ -46,6 +77,45 @@ def class_named(path: str, kind: type) -> type:
         raise ConfigurationError(f"the model file names {path}, which is not a {kind.__name__}; the file was not "
                                  "written by torchpaml or was changed")
     return cls
+
+
+def check_classes(value: Any, trust: tuple[str, ...]) -> None:
+    """Every ``class_path`` anywhere in ``value`` (a model file's content) is a class path in torchpaml or a trusted
+    package (:func:`class_named`'s refusals), checked on the text before any module is imported."""
+    if isinstance(value, dict):
+        if "class_path" in value:
+            path = value["class_path"]
+            if not (isinstance(path, str) and _DOTTED.fullmatch(path)) or not trusted(path, trust):
+                class_named(path, object, trust)  # raises its one-line refusal; nothing trusted is imported
+        for item in value.values():
+            check_classes(item, trust)
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            check_classes(item, trust)
+
+
+def _check_strings(value: Any, where: str) -> None:
+    """Every string in ``value`` (plain data: dicts, lists, strings, numbers, tensors) is plain text."""
+    if isinstance(value, str):
+        check_plain_text(value, where)
+    elif isinstance(value, dict):
+        for key, item in value.items():
+            _check_strings(key, f"{where}, a key")
+            _check_strings(item, f"{where}[{key!r}]" if isinstance(key, str) and len(key) < 40 else where)
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            _check_strings(item, where)
+
+
+def _check_spec(spec: dict) -> None:
+    """The spec's strings are plain text and its parameter names dotted identifiers (module docstring)."""
+    owner = spec["class_path"]
+    for part in ("args", "kwargs", "attributes"):
+        _check_strings(spec[part], f"{owner}'s {part}")
+    for name in (*spec["constraints"], *spec["state"]):
+        if not (isinstance(name, str) and _DOTTED.fullmatch(name)):
+            raise ConfigurationError(f"{owner} names a parameter {str(name)[:60]!r}, which is not a dotted identifier; "
+                                     "the file was not written by torchpaml.save_model or was changed")
 
 
 def _value(value: Any, owner: str, name: str) -> Any:
@@ -64,18 +134,18 @@ def _value(value: Any, owner: str, name: str) -> Any:
                              "keeps numbers, strings, lists, dicts, tensors and torchpaml modules as arguments")
 
 
-def _built_value(value: Any) -> Any:
+def _built_value(value: Any, trust: tuple[str, ...]) -> Any:
     if not isinstance(value, dict):
         return value
     (kind, content), = value.items()
     if kind == "module":
-        return built_module(content)
+        return built_module(content, trust)
     if kind == "tensor":
         return content
     if kind in ("list", "tuple"):
-        items = [_built_value(v) for v in content]
+        items = [_built_value(v, trust) for v in content]
         return items if kind == "list" else tuple(items)
-    return {k: _built_value(v) for k, v in content.items()}
+    return {k: _built_value(v, trust) for k, v in content.items()}
 
 
 def _attributes(module: nn.Module) -> dict[str, dict[str, Any]]:
@@ -112,10 +182,13 @@ def module_spec(module: Rebuildable) -> dict:
             "state": {k: v.detach().clone() for k, v in module.state_dict().items()}}
 
 
-def built_module(spec: dict) -> nn.Module:
-    """The module that :func:`module_spec` described, its parameters bit for bit."""
-    cls = class_named(spec["class_path"], Rebuildable)
-    module = cls(*[_built_value(v) for v in spec["args"]], **{k: _built_value(v) for k, v in spec["kwargs"].items()})
+def built_module(spec: dict, trust: tuple[str, ...] = ()) -> nn.Module:
+    """The module that :func:`module_spec` described, its parameters bit for bit; classes outside torchpaml load
+    only from the packages of ``trust`` (module docstring)."""
+    cls = class_named(spec["class_path"], Rebuildable, trust)
+    _check_spec(spec)
+    module = cls(*[_built_value(v, trust) for v in spec["args"]],
+                 **{k: _built_value(v, trust) for k, v in spec["kwargs"].items()})
     modules = dict(module.named_modules())
     for path, attributes in spec["attributes"].items():
         for name, value in attributes.items():
@@ -140,9 +213,10 @@ def solver_spec(solver: Solver) -> dict:
             "fields": {k: {"solver": solver_spec(v)} if isinstance(v, Solver) else v for k, v in fields.items()}}
 
 
-def built_solver(spec: dict) -> Solver:
-    """The solver :func:`solver_spec` described."""
-    cls = class_named(spec["class_path"], Solver)
-    fields = {k: built_solver(v["solver"]) if isinstance(v, dict) and "solver" in v else v
+def built_solver(spec: dict, trust: tuple[str, ...] = ()) -> Solver:
+    """The solver :func:`solver_spec` described (its class by the same permission as :func:`built_module`'s)."""
+    cls = class_named(spec["class_path"], Solver, trust)
+    _check_strings(spec["fields"], f"{spec['class_path']}'s fields")
+    fields = {k: built_solver(v["solver"], trust) if isinstance(v, dict) and "solver" in v else v
               for k, v in spec["fields"].items()}
     return cls(**fields)

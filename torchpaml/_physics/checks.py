@@ -47,10 +47,16 @@ def _evaluate(name: str, method: str, call: Callable[[], torch.Tensor], expected
                            "the formula (a division by a state that starts at 0, a log or sqrt of a negative value)")
 
 
-def check_channels(physics: AbstractPhysics, record) -> None:
+def check_channels(physics: AbstractPhysics, record, missing: bool = False) -> None:
     """:class:`~torchpaml.DataError` in one line where a :class:`~torchpaml.Record`'s input and output channels are
-    not the physics' ``input_dim`` and ``output_dim``, or where both name them and the names differ; a
-    :class:`~torchpaml.ConfigurationError` where the physics names a number of channels other than its own."""
+    not the physics' ``input_dim`` and ``output_dim``, or where both name them and the names differ, or where its
+    outputs have missing samples (NaN, metadata ``"missing_outputs"``) and ``missing`` does not allow them (a fit
+    does not; a tracker predicts through them); a :class:`~torchpaml.ConfigurationError` where the physics names a
+    number of channels other than its own."""
+    if record.metadata.get("missing_outputs") and not missing:
+        raise DataError(f"record {record.name!r} has {record.metadata['missing_outputs']} sample(s) whose output is "
+                        "missing (NaN): a fit needs every output measured; drop or interpolate those samples (a "
+                        "tracker predicts through them: torchpaml track)")
     counts = {"input": record.u.shape[1], "output": record.y.shape[1]}
     for what, given in counts.items():
         declared, names = getattr(physics, f"{what}_dim"), tuple(getattr(physics, f"{what}_names"))

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -31,6 +30,7 @@ import torch
 
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._errors import ConfigurationError
+from torchpaml._physics.term_parser import parse_term
 
 __all__ = ["CompiledTerm", "TermLibrary", "compile_term", "state_columns", "variables_of", "width_symbol"]
 
@@ -130,18 +130,13 @@ def _compile(node: sympy.Basic, text: str) -> Callable[[dict], torch.Tensor]:
 
 
 def compile_term(text: str, variables: Sequence[str] | None) -> CompiledTerm:
-    """Parse ``text`` with sympy over ``variables`` (and widths ``eps...``; ``None``: any name); its canonical
-    text and function.
+    """Parse ``text`` (:func:`~torchpaml._physics.term_parser.parse_term`: read as data, never run) over
+    ``variables`` (and widths ``eps...``; ``None``: any name); its canonical text and function.
 
-    Raises ``ValueError`` naming the term and the fix: unknown names, unsupported functions, a constant
-    that does not depend on any variable other than ``"1"``.
+    Raises :class:`~torchpaml.ConfigurationError` naming the term and the fix: a construct outside the parser's
+    whitelist, unknown names, a constant that does not depend on any variable other than ``"1"``.
     """
-    try:
-        names = set(re.findall(r"\b[A-Za-z_]\w*\b(?!\s*\()", text))  # names not called as functions
-        symbols = {name: sympy.Symbol(name, real=True) for name in names}
-        expression = sympy.sympify(text, locals=symbols)
-    except (sympy.SympifyError, SyntaxError, TypeError) as error:
-        raise ConfigurationError(f"term {text!r} is not a sympy expression ({error}); write it like 'x**2*tanh(v/eps)'") from None
+    expression = parse_term(text)
     used = {s.name for s in expression.free_symbols}
     unknown = sorted(n for n in used if variables is not None and n not in variables and not n.startswith("eps"))
     if unknown:
@@ -200,7 +195,7 @@ class TermLibrary:
             for s in states:
                 sign = sympy.tanh(sympy.Symbol(s, real=True) / sympy.Symbol(width_symbol(s), real=True))
                 for m in lower:
-                    factor = sympy.sympify(m, locals={n: sympy.Symbol(n, real=True) for n in variables})
+                    factor = parse_term(m)
                     terms += [str(factor * sympy.Abs(sympy.Symbol(s, real=True))), str(factor * sign)]
         if self.roots:
             terms += [f"sqrt(Abs({s}))" for s in roots]

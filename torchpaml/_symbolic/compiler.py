@@ -6,13 +6,14 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import stat
 import subprocess
 import tempfile
 from pathlib import Path
 
 from torchpaml._errors import ConfigurationError
 
-__all__ = ["cached_library", "compile_library", "compiler"]
+__all__ = ["cache_folder", "cached_library", "compile_library", "compiler"]
 
 #: ``-ffp-contract=off``: no fused multiply-adds, so a library gives the same numbers on every machine.
 FLAGS = ("-shared", "-fPIC", "-O2", "-ffp-contract=off")
@@ -44,21 +45,37 @@ def compile_library(source: str, library: Path, purpose: str, include: Path | No
     return library
 
 
-def _cache() -> Path:
-    """``$XDG_CACHE_HOME/torchpaml/compiled`` (``~/.cache`` by default), or a temporary folder where that cannot be
-    written."""
-    folder = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "torchpaml" / "compiled"
+def cache_folder() -> Path:
+    """The user's own folder of compiled libraries: ``$XDG_CACHE_HOME/torchpaml/compiled`` (``~/.cache`` by
+    default), created owner-only (mode 0700). It is used only while it belongs to this user and no one else can write
+    to it; otherwise :class:`~torchpaml.ConfigurationError` says which folder and how to fix it. There is no shared
+    fallback: a library in a folder that others can write could be planted there, and loading it runs its code."""
+    folder = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "torchpaml" / "compiled"
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        folder = Path(tempfile.gettempdir()) / "torchpaml-compiled"
-        folder.mkdir(parents=True, exist_ok=True)
+        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+    except OSError as error:
+        raise ConfigurationError(f"the compiled-library cache {folder} cannot be created ({error.strerror}); set "
+                                 "XDG_CACHE_HOME to a folder of your own") from None
+    _check_owned(folder, "the compiled-library cache")
     return folder
 
 
+def _check_owned(path: Path, what: str) -> None:
+    """``path`` belongs to this user and neither its group nor others can write it."""
+    status = path.stat()
+    if status.st_uid != os.getuid() or status.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
+        raise ConfigurationError(f"{what} {path} belongs to another user or others can write to it (mode "
+                                 f"{stat.filemode(status.st_mode)}); a library there could have been planted: remove "
+                                 "it, or set XDG_CACHE_HOME to a folder of your own")
+
+
 def cached_library(source: str, name: str, purpose: str) -> Path:
-    """``source`` compiled once per machine (:func:`compile_library`), kept under the cache folder as
-    ``NAME_DIGEST.so`` where DIGEST is the SHA-256 of the source; later calls load that file."""
-    digest = hashlib.sha256(source.encode()).hexdigest()[:16]
-    library = _cache() / f"{name}_{digest}.so"
-    return library if library.exists() else compile_library(source, library, purpose)
+    """``source`` compiled once per machine (:func:`compile_library`), kept under :func:`cache_folder` as
+    ``NAME_DIGEST.so`` where DIGEST is the SHA-256 of the source, the compiler's path and :data:`FLAGS`; later calls
+    load that file once it is checked to be the user's own and written by no one else."""
+    key = "\0".join((source, str(compiler()), *FLAGS))
+    library = cache_folder() / f"{name}_{hashlib.sha256(key.encode()).hexdigest()[:16]}.so"
+    if library.exists():
+        _check_owned(library, "the compiled library")
+        return library
+    return compile_library(source, library, purpose)

@@ -12,6 +12,9 @@ Joseph form $P = (I - KH) P^- (I - KH)^\top + K R K^\top$. The normalised innova
 $\nu = e^\top S^{-1} e$ (chi-squared with $p$ degrees of freedom while the device matches the model) feeds the
 change detector (:mod:`~torchpaml._track.tracker`).
 
+**A missing measurement** (a NaN in any output of a sample) is predicted through: no update, the innovation NaN
+and $\nu = 0$, so the detector's window sum holds no term for it.
+
 One call filters a block of samples in C (``track_block``); the filter's state (x, P) lives in numpy arrays the
 caller keeps, so a stream is fed one sample or a thousand at a time with the same result.
 """
@@ -114,6 +117,14 @@ int track_block(int n, int start, const double *t, const double *u, const double
             for (int r = 0; r < N; r++) for (int q = 0; q < N; q++) {
                 double acc = Q[r * N + q]; for (int l = 0; l < N; l++) acc += FP[r * N + l] * F[q * N + l];
                 P[r * N + q] = acc; }
+        }
+        int missing = 0;
+        for (int i = 0; i < p; i++) missing |= isnan(y[k * p + i]);
+        if (missing) {  /* a missing measurement: the prediction stands, no update, nothing for the detector */
+            for (int i = 0; i < p; i++) innovation[k * p + i] = NAN;
+            nis[k] = 0.0;
+            for (int i = 0; i < N; i++) states[k * N + i] = x[i];
+            continue;
         }
         output(x, u + k * N_INPUTS, yh);
         output_jacobian(x, u + k * N_INPUTS, H);

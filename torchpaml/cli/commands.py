@@ -71,7 +71,7 @@ def _predict(args: argparse.Namespace) -> None:
 
     if args.data is None:
         raise ConfigurationError("simulate --model needs --data: a CSV with t and the model's input columns")
-    model = load_model(args.model)
+    model = load_model(args.model, trust=args.trust)
     record = Record.from_csv(args.data, channels=(model.inputs, model.outputs), hold=args.hold,
                              with_outputs=False)
     prediction = predict(model, record, args.band)
@@ -98,6 +98,7 @@ def _simulate_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--dt", type=float, default=0.01, help="sampling interval, s (default 0.01)")
     parser.add_argument("--noise", type=float, default=0.0, help="output noise std as a fraction of RMS(y)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the signal and the noise")
+    _trust_argument(parser)
     parser.add_argument("--out", required=True, help="CSV file to write (header t,u,y; first line # metadata; with "
                         "--model: t, the inputs, the outputs, the states and the band)")
     parser.set_defaults(run=_simulate)
@@ -107,7 +108,7 @@ def _export(args: argparse.Namespace) -> None:
     from torchpaml._export import export_model
     from torchpaml._model import load_model
 
-    written = export_model(load_model(args.model), fmu=args.fmu, onnx=args.onnx, code=args.code)
+    written = export_model(load_model(args.model, trust=args.trust), fmu=args.fmu, onnx=args.onnx, code=args.code)
     print("wrote " + ", ".join(str(p) for p in written))
 
 
@@ -116,6 +117,7 @@ def _export_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fmu", help="FMU to write (FMI 2.0 co-simulation; needs a C compiler and FMPy's headers)")
     parser.add_argument("--onnx", help="ONNX file to write: the model's one-step map")
     parser.add_argument("--code", help="code to write, the language by the suffix: .py, .c or .h, .tex")
+    _trust_argument(parser)
     parser.set_defaults(run=_export)
 
 
@@ -125,32 +127,50 @@ def _track(args: argparse.Namespace) -> None:
     from torchpaml._render.tracking import write_tracking
     from torchpaml._track import track
 
-    model = load_model(args.model)
-    record = Record.from_csv(args.data, channels=(model.inputs, model.outputs), hold=args.hold)
-    options = {"window": args.window, "alpha": args.alpha, "attribution": args.attribution}
-    if args.noise:
-        options["noise"] = tuple(args.noise)
+    model = load_model(args.model, trust=args.trust)
+    record = Record.from_csv(args.data, channels=(model.inputs, model.outputs), hold=args.hold,
+                             missing_outputs=True)
+    options = {"window": args.window, "alpha": args.alpha, "attribution": args.attribution,
+               "hold": args.hold or record.metadata.get("hold") or model.hold}
+    for option, key in (("noise", "noise"), ("x0", "x0"), ("process_noise", "process")):
+        if getattr(args, option):
+            options[key] = tuple(getattr(args, option))
     with progress_lines(f"{args.prog} track", enabled=not args.quiet):
         tracking = track(model, record, **options)
     path = write_tracking(tracking, args.out)
     alarms = "; ".join(f"t = {a.t:.4g} s ({a.parameter or 'parameter undetermined'})" for a in tracking.alarms)
-    print(f"wrote {path}: {len(record.t)} samples in {tracking.seconds:.3g} s, "
+    print(f"wrote {path}: {len(record.t)} samples in {tracking.seconds:.3g} s ({tracking.missing} missing), "
           f"{len(tracking.alarms)} alarm(s){': ' + alarms if alarms else ''}")
+
+
+def _trust_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--trust", action="append", default=[], metavar="PACKAGE",
+                        help="a package whose classes the model file may name besides torchpaml's (your own physics; "
+                        "repeat); a file naming any other is refused before anything is imported")
 
 
 def _track_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", required=True, help="a saved model (model.pt of torchpaml diagnose)")
-    parser.add_argument("--data", required=True, help="CSV of the stream: t, the model's inputs and outputs")
+    parser.add_argument("--data", required=True, help="CSV of the stream: t, the model's inputs and outputs (an "
+                        "empty or NaN output cell is a missing measurement, predicted through)")
     parser.add_argument("--out", required=True, help="folder for track.json and track.png")
-    parser.add_argument("--window", type=float, default=0.5, help="the detector's window, s (default 0.5)")
+    parser.add_argument("--window", type=float, default=0.5, help="the detector's window, s; the start is estimated "
+                        "on the stream's first window (default 0.5)")
     parser.add_argument("--alpha", type=float, default=1e-9,
-                        help="the detector's false-alarm probability per window (default 1e-9)")
+                        help="the detector's false-alarm probability per window (default 1e-9: at 1 kHz at most "
+                        "3.6e-3 false alarms an hour)")
     parser.add_argument("--attribution", type=float, default=1.0,
                         help="seconds after an alarm on which the parameter that moved is named (default 1)")
     parser.add_argument("--noise", type=float, action="append", metavar="STD",
                         help="an output's noise standard deviation (repeat per output; default: the model's)")
+    parser.add_argument("--x0", type=float, action="append", metavar="VALUE",
+                        help="a known initial state (repeat per state; default: estimated from the first window)")
+    parser.add_argument("--process-noise", type=float, action="append", metavar="STD",
+                        help="each state's process noise standard deviation per sample (repeat per state, or once "
+                        "for all; default: from the fit's parameter uncertainty)")
     parser.add_argument("--hold", choices=["foh", "zoh"], help="how the input moved between samples "
-                        "(default: the file's metadata, else foh)")
+                        "(default: the file's metadata, else the model's)")
+    _trust_argument(parser)
     parser.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     parser.set_defaults(run=_track)
 

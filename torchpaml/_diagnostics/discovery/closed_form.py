@@ -35,6 +35,7 @@ from torchpaml._fit import PhysicsEstimate
 from torchpaml._budget import Budget
 from torchpaml._fit.uncertainty import IdentifiabilityWarning
 from torchpaml._physics.discovered import DiscoveredForce
+from torchpaml._physics.term_parser import parse_term
 from torchpaml._physics.terms import compile_term, input_values, state_columns, width_symbol
 from torchpaml._data.simulation import record_states
 from torchpaml._simulate.solvers import Solver
@@ -54,7 +55,7 @@ def _limit(term: str, width: str, variable: str, edge: str) -> str:
     $s\,\mathrm{sign}(s) = |s|$) or the ``"high"`` edge (``variable/width``, the width then folded into the
     coefficient)."""
     s, w = sympy.Symbol(variable, real=True), sympy.Symbol(width, real=True)
-    expression = sympy.sympify(compile_term(term, None).text, locals={variable: s, width: w})
+    expression = parse_term(compile_term(term, None).text)
     sign = sympy.tanh(s / w)
     if edge == "high":
         return str(expression.subs(sign, s))
