@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 import torch
 
-from torchpaml import (RK4, ConfigurationError, FittedModel, Oscillator, Record, Tracker, pseudorandom, simulate,
-                       time_grid, track)
+from torchpaml import (RK4, ConfigurationError, DataError, FittedModel, Oscillator, Record, Tracker, fit_physics,
+                       pseudorandom, simulate, time_grid, track)
 
 H = 0.01
 
@@ -87,3 +87,90 @@ def test_bad_settings_are_refused(options, message):
     model, _ = _linear_record(noise=0.01)
     with pytest.raises(ConfigurationError, match=message):
         Tracker(model, **options)
+
+
+def _two_output_model() -> FittedModel:
+    from two_mass import TwoMass
+
+    return FittedModel(TwoMass(), RK4(substeps=1), step=H, noise=(0.01, 0.01), inputs=("u",), outputs=("x1", "x2"))
+
+
+@pytest.mark.parametrize("outputs", [1, 3])
+def test_a_stream_with_another_number_of_outputs_is_refused_in_one_line_before_any_c_runs(outputs, monkeypatch):
+    """A two-output model on a stream of one or three outputs: the record check refuses it (the filter would write
+    past its buffer), in feed and in update."""
+    model = _two_output_model()
+    t = time_grid(2.0, H)
+    record = Record(t, pseudorandom(t, 1.0, seed=0)[0], torch.zeros(len(t), outputs))
+    tracker = Tracker(model)
+    monkeypatch.setattr(tracker.filter, "run_into", lambda *a: pytest.fail("the filter ran on a wrong stream"))
+    with pytest.raises(DataError, match=rf"has {outputs} output channel\(s\), but TwoMass has 2") as refused:
+        tracker.feed(record)
+    assert "\n" not in str(refused.value)
+    with pytest.raises(DataError, match=rf"a sample has 1 input\(s\) and {outputs} output\(s\); the model .* 2 "):
+        tracker.update(0.0, [0.0], [0.0] * outputs)
+
+
+def test_a_missing_measurement_is_predicted_through_and_counted():
+    """NaN outputs (one sample in ten, and a run of 50): the state stays finite, the innovation is NaN exactly there,
+    the detector raises no alarm, the same as a stream without those samples would; fed one sample at a time too."""
+    model, record = _linear_record(noise=0.01, u_scale=1.0, x0=(0.3, -0.2))
+    y = record.y.clone()
+    gaps = (torch.arange(len(y)) % 10 == 7) | ((torch.arange(len(y)) >= 600) & (torch.arange(len(y)) < 650))
+    y[gaps] = float("nan")
+    stream = Record(record.t, record.u, y, metadata={"missing_outputs": int(gaps.sum())})
+    tracking = track(model, stream)
+    assert tracking.missing == int(gaps.sum()) and tracking.alarms == []
+    assert np.isfinite(tracking.states).all() and np.isfinite(tracking.statistic).all()
+    judged = np.arange(len(y)) >= tracker_start(model)
+    assert np.array_equal(np.isnan(tracking.innovation[judged, 0]), gaps.numpy()[judged])
+    one_by_one = Tracker(model)
+    for k in range(len(y)):
+        one_by_one.update(float(stream.t[k]), stream.u[k].numpy(), stream.y[k].numpy())
+    assert one_by_one.missing == tracking.missing and np.array_equal(one_by_one.x, tracking.states[-1])
+
+
+def tracker_start(model: FittedModel) -> int:
+    """The samples of the estimated start (the detector's window at the default 0.5 s)."""
+    return Tracker(model).samples
+
+
+def test_a_missing_input_or_time_is_refused_and_a_fit_refuses_missing_outputs():
+    model, record = _linear_record(noise=0.01)
+    tracker = Tracker(model)
+    with pytest.raises(DataError, match="NaN or infinite time or input"):
+        tracker.update(0.0, [float("nan")], [0.0])
+    y = record.y.clone()
+    y[5] = float("nan")
+    gappy = Record(record.t, record.u, y, metadata={"missing_outputs": 1})
+    with pytest.raises(DataError, match=r"1 sample\(s\) whose output is missing"):
+        fit_physics(Oscillator(), gappy)
+    with pytest.raises(DataError, match="NaN/inf"):
+        Record(record.t, record.u, y)  # without the metadata a NaN is a mistake, as before
+
+
+def test_a_stream_csv_with_empty_output_cells_is_read_for_tracking(tmp_path):
+    model, record = _linear_record(noise=0.01, u_scale=1.0)
+    record.to_csv(tmp_path / "stream.csv")
+    lines = (tmp_path / "stream.csv").read_text().splitlines()
+    lines[10] = lines[10].rsplit(",", 1)[0] + ","  # a sample whose output did not arrive: an empty cell
+    lines[11] = lines[11].rsplit(",", 1)[0] + ",nan"
+    (tmp_path / "stream.csv").write_text("\n".join(lines) + "\n")
+    stream = Record.from_csv(tmp_path / "stream.csv", missing_outputs=True)
+    first = 10 - 1 - int(lines[0].startswith("#"))  # the rows above the samples: the header, a metadata line
+    assert stream.metadata["missing_outputs"] == 2
+    assert torch.isnan(stream.y[:, 0]).nonzero().flatten().tolist() == [first, first + 1]
+    with pytest.raises(DataError, match="not a number"):
+        Record.from_csv(tmp_path / "stream.csv")
+
+
+def test_the_hold_is_the_trackers_own():
+    """A zero-order-hold stream tracked with hold='zoh' matches the model's own zoh simulation (innovation = y - model
+    output on a known start); with the model's foh it does not."""
+    model, record = _linear_record(noise=0.0, u_scale=1.0, x0=(0.0, 0.0))
+    held = Record(record.t, record.u, record.y, hold="zoh")
+    y = model.simulate(held)
+    exact = Record(record.t, record.u, y, hold="zoh")
+    zoh = track(model, exact, x0=(0.0, 0.0), hold="zoh", noise=(0.01,))
+    foh = track(model, exact, x0=(0.0, 0.0), noise=(0.01,))
+    assert np.abs(zoh.innovation).max() < 1e-12 < np.abs(foh.innovation).max()

@@ -24,7 +24,7 @@ import torch
 from torch import nn
 
 from torchpaml._arguments import Rebuildable, built_with
-from torchpaml._errors import ConfigurationError
+from torchpaml._errors import ConfigurationError, TorchpamlError
 from torchpaml._parameters import Interval, constrain, declared
 from torchpaml._simulate.solvers import Solver
 from torchpaml._text import check_plain_text
@@ -187,8 +187,16 @@ def built_module(spec: dict, trust: tuple[str, ...] = ()) -> nn.Module:
     only from the packages of ``trust`` (module docstring)."""
     cls = class_named(spec["class_path"], Rebuildable, trust)
     _check_spec(spec)
-    module = cls(*[_built_value(v, trust) for v in spec["args"]],
-                 **{k: _built_value(v, trust) for k, v in spec["kwargs"].items()})
+    args = [_built_value(v, trust) for v in spec["args"]]
+    kwargs = {k: _built_value(v, trust) for k, v in spec["kwargs"].items()}
+    try:
+        module = cls(*args, **kwargs)
+    except TorchpamlError:
+        raise
+    except (TypeError, ValueError) as error:  # arguments that do not fit the class: a changed file, not a bug
+        raise ConfigurationError(f"the model file's arguments do not build {spec['class_path']} ("
+                                 f"{str(error).splitlines()[0] if str(error) else type(error).__name__}); the file "
+                                 "was not written by torchpaml.save_model or was changed") from None
     modules = dict(module.named_modules())
     for path, attributes in spec["attributes"].items():
         for name, value in attributes.items():

@@ -6,7 +6,7 @@ the input held as ``hold`` says (default the model's). Its measurement noise $R$
 residual variance per output (``FittedModel.noise``, from the diagnosis). Where it starts and how far the model may
 drift are taken from the stream and the fit (:mod:`~torchpaml._track.start`): by default the initial state is the
 one that best explains the stream's first ``window`` seconds, with the covariance of that estimate, and the process
-noise $Q$ is the one-sample state error that the fit's parameter uncertainty allows. ``x0`` starts it at a known
+noise $Q$ is the state error that the fit's parameter uncertainty allows over the detector's window. ``x0`` starts it at a known
 state instead (covariance ``initial_variance`` times the identity) and ``process`` gives each state's process
 noise standard deviation per sample.
 
@@ -220,7 +220,7 @@ class Tracker:
             Q = np.diag(np.square(self._process))
         else:
             Q = process_noise_of_fit(self.model, states_along(self.model, window, x0, self.substeps), window,
-                                     self.substeps)
+                                     self.substeps, self.samples)
         self._pair[3][:], self._pair[4][:], self._pair[5][:] = x0, P0, Q
         self.x0 = x0.copy()
         log.info("tracking from t = %.6g s: %s start, process noise %s", t[0],
