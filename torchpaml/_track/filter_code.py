@@ -101,7 +101,8 @@ static int cholesky_solve(int p, double *S, double *B, int c) {
 
 /* Filter samples start..n-1 of (t, u, y); x (N_STATES) and P (N_STATES^2) carry the filter from sample start - 1
    (or hold the prior at sample 0 when start == 0). Writes each sample's innovation (N_OUTPUTS), its normalised
-   square nis and the filtered state. Returns 0, or k + 1 where S stopped being positive definite at sample k. */
+   square nis and the filtered state. Returns 0, k + 1 where S stopped being positive definite at sample k, or
+   -(k + 1) where sample k's input is not finite. */
 int track_block(int n, int start, const double *t, const double *u, const double *y, double *x, double *P,
                 const double *Q, const double *R, double *innovation, double *nis, double *states) {
     const int N = N_STATES, p = N_OUTPUTS;
@@ -109,6 +110,7 @@ int track_block(int n, int start, const double *t, const double *u, const double
     double S[N_OUTPUTS * N_OUTPUTS], HP[N_OUTPUTS * N_STATES], Kt[N_OUTPUTS * N_STATES], A[N_STATES * N_STATES];
     double e[N_OUTPUTS], w[N_OUTPUTS], AP[N_STATES * N_STATES];
     for (int k = start; k < n; k++) {
+        for (int i = 0; i < N_INPUTS; i++) if (!isfinite(u[k * N_INPUTS + i])) return -(k + 1);
         if (k > 0) {
             jacobian_of_step(t[k - 1], x, u + (k - 1) * N_INPUTS, u + k * N_INPUTS, t[k] - t[k - 1], xn, F);
             for (int i = 0; i < N; i++) x[i] = xn[i];

@@ -169,6 +169,7 @@ class Tracker:
         self._addresses = [a.ctypes.data for a in self._pair]
         self._started = False
         self._waiting: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # samples before the start is known
+        self._waited = 0
         self._armed = True
         self.missing = 0
         self.detector_from: float | None = None
@@ -241,6 +242,9 @@ class Tracker:
         return tuple(a[skip:] for a in outputs)
 
     def _check(self, failed: int, t: np.ndarray) -> None:
+        if failed < 0:
+            raise DataError(f"the input at t = {t[-failed - 1]:.6g} s is NaN or infinite; the filter cannot predict "
+                            "without the input (a missing output is fine: give NaN)")
         if failed:
             raise ConfigurationError(f"the filter's innovation covariance stopped being positive definite at t = "
                                      f"{t[failed - 1]:.6g} s; raise the measurement noise (noise=)")
@@ -272,16 +276,23 @@ class Tracker:
         """One sample of a stream: its time (s), input (n_u,) and output (n_y,; NaN where missing); the alarm named
         on it, if any (raised ``attribution`` seconds earlier). The same filter, sums and decisions as :meth:`feed`,
         with the arrays kept between calls."""
-        t, u, y = self._sample(t, u, y)
         if not self._started:
+            t, u, y = self._sample(t, u, y)
             alarms = self._advance(np.array([t]), u[None], y[None])[4]
             return alarms[0] if alarms else None
-        pair = self._pair
+        pair = self._pair  # the fast path: sizes checked here, a non-finite input by the C, time by one comparison
+        try:
+            sizes = (len(u), len(y))
+        except TypeError:
+            sizes = None
+        if sizes != (pair[1].shape[1], pair[2].shape[1]) or not t > pair[0][1]:
+            self._sample(t, u, y)  # raises the one-line refusal
         for i, value in enumerate((t, u, y)):
             pair[i][0] = pair[i][1]
             pair[i][1] = value
         self._check(self.filter.run_at(2, 1, self._addresses), pair[0])
-        self.missing += int(not np.isfinite(y).all())
+        innovation = pair[7][1][0]
+        self.missing += innovation != innovation  # NaN: the measurement was missing
         self._history.append((t, pair[1][1], pair[2][1], pair[9][1], pair[8][1]))
         statistic = self._history.window_sum(self.samples)
         if self._crosses(statistic):
@@ -323,7 +334,8 @@ class Tracker:
     def _advance(self, t: np.ndarray, u: np.ndarray, y: np.ndarray, end: bool = False) -> tuple:
         if not self._started:
             self._waiting.append((t, u, y))
-            if sum(len(block[0]) for block in self._waiting) < self.samples and not end:
+            self._waited += len(t)
+            if self._waited < self.samples and self._x0 is None and not end:  # a known start needs no window
                 p, n = y.shape[1], len(self._pair[3])
                 return t[:0], np.zeros((0, p)), np.zeros(0), np.zeros((0, n)), []
             t, u, y = (np.concatenate(parts) for parts in zip(*self._waiting))
@@ -398,13 +410,15 @@ class Tracker:
 
 class _Ring:
     """The last ``capacity`` samples of t, u, y, the filtered states and nis, kept in place (a stream fed one
-    sample at a time writes one row)."""
+    sample at a time writes one row). The nis are kept twice over, at ``i`` and ``i + capacity``, so that any
+    window of the last ``capacity`` values is one contiguous slice (zeros before the stream's start)."""
 
     def __init__(self, capacity: int, widths: tuple[int, int, int]):
         m, p, n = widths
         self.capacity, self.count = capacity, 0
         self.arrays = [np.zeros(capacity), np.zeros((capacity, m)), np.zeros((capacity, p)), np.zeros((capacity, n)),
                        np.zeros(capacity)]
+        self._nis = np.zeros(2 * capacity)
 
     def __len__(self) -> int:
         return min(self.count, self.capacity)
@@ -413,6 +427,7 @@ class _Ring:
         i = self.count % self.capacity
         for array, value in zip(self.arrays, row):
             array[i] = value
+        self._nis[i] = self._nis[i + self.capacity] = row[4]
         self.count += 1
 
     def extend(self, blocks: tuple[np.ndarray, ...]) -> None:
@@ -421,6 +436,7 @@ class _Ring:
         index = (self.count + n - rows + np.arange(rows)) % self.capacity
         for array, block in zip(self.arrays, blocks):
             array[index] = block[n - rows:]
+        self._nis[index] = self._nis[index + self.capacity] = blocks[4][n - rows:]
         self.count += n
 
     def last(self, n: int) -> list[np.ndarray]:
@@ -430,12 +446,10 @@ class _Ring:
         return [array[index] for array in self.arrays]
 
     def window_sum(self, n: int) -> float:
-        """The sum of the last ``n`` nis in time order (zeros before the stream's start), as :meth:`Tracker._statistic`
-        sums a window."""
-        nis, kept = self.arrays[4], min(n, len(self))
-        end = self.count % self.capacity
-        parts = [nis[end - kept:end]] if kept <= end else [nis[self.capacity - (kept - end):], nis[:end]]
-        return float(np.concatenate([np.zeros(n - kept), *parts]).sum())
+        """The sum of the last ``n`` (at most ``capacity``) nis in time order, zeros before the stream's start, as
+        :meth:`Tracker._statistic` sums a window: the same numbers in the same order, so the same sum bit for bit."""
+        end = self.count % self.capacity + self.capacity
+        return float(self._nis[end - n:end].sum())
 
 
 def _vector(value, n: int, name: str, meaning: str, nonnegative: bool = False) -> np.ndarray:
