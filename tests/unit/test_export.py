@@ -113,6 +113,35 @@ def test_the_fmu_runs_in_fmpy_without_torchpaml(name, tmp_path):
     assert _relative(np.load(tmp_path / "y.npy"), model.simulate(record)) < TOLERANCE
 
 
+@pytest.mark.parametrize("name", list(MODELS))
+def test_the_model_exchange_fmu_runs_as_the_model_in_fmpys_simulate_fmu(name, tmp_path):
+    """The call a user makes: FMPy's ``simulate_fmu`` with an input table at the records' samples (no torchpaml in the
+    process). The model-exchange FMU reproduces the model to 1e-6 (at each sample time the row after the event, the
+    state's step; ``record_events=False`` gives those rows alone); the co-simulation FMU, whose input FMPy holds over
+    each step, does not, on a model with a first-order hold."""
+    pytest.importorskip("fmpy", reason="the FMU is checked by FMPy ([export])")
+    model = MODELS[name]
+    export_model(model, fmu=tmp_path / "cs.fmu", fmu_me=tmp_path / "me.fmu")
+    record = _record(model)
+    names = [s.name for s in closed_form(model.physics, model.inputs, model.outputs).inputs]
+    outputs = list(model.outputs) or ["y"]
+    np.savez(tmp_path / "record.npz", t=record.t.numpy(), u=record.u.numpy())
+    script = (f"import sys, numpy as np; from fmpy import simulate_fmu; r = np.load('record.npz'); "
+              f"table = np.array(list(zip(r['t'], *r['u'].T)), dtype=[('time', float)] + [(n, float) for n in {names!r}]); "
+              f"run = lambda path, **o: simulate_fmu(path, input=table, stop_time=float(r['t'][-1]), output={outputs!r}, "
+              f"output_interval=float(r['t'][1] - r['t'][0]), **o); "
+              f"me = run('me.fmu'); last = np.r_[me['time'][1:] != me['time'][:-1], True]; "
+              f"np.save('me.npy', np.stack([me[n][last] for n in {outputs!r}], 1)); "
+              f"quiet = run('me.fmu', record_events=False); np.save('quiet.npy', np.stack([quiet[n] for n in {outputs!r}], 1)); "
+              f"cs = run('cs.fmu'); np.save('cs.npy', np.stack([cs[n] for n in {outputs!r}], 1)); "
+              "assert not any(m.startswith('torchpaml') for m in sys.modules), 'torchpaml was imported'")
+    subprocess.run([sys.executable, "-c", script], cwd=tmp_path, check=True)
+    expected = model.simulate(record)
+    assert _relative(np.load(tmp_path / "me.npy"), expected) < TOLERANCE
+    assert _relative(np.load(tmp_path / "quiet.npy"), expected) < TOLERANCE
+    assert _relative(np.load(tmp_path / "cs.npy"), expected) > 100 * TOLERANCE
+
+
 def test_the_onnx_step_of_a_hybrid_carries_the_residual_filter(tmp_path):
     """A hybrid (physics + the Chebyshev-Hammerstein residual, its coefficients random): the ONNX step, the residual's
     filter states after the physics' in x, reproduces torchpaml's hybrid output to 1e-6 (the residual's filter is

@@ -17,12 +17,14 @@ LANGUAGES = {".py": python_code, ".c": c_code, ".h": c_code, ".tex": latex_code}
 
 
 def export_model(model: FittedModel, *, fmu: str | Path | None = None, onnx: str | Path | None = None,
-                 code: str | Path | None = None) -> list[Path]:
+                 code: str | Path | None = None, fmu_me: str | Path | None = None) -> list[Path]:
     """Write the exports of ``model`` that are asked for; returns their paths.
 
     Args:
         model: a fitted model (``torchpaml.load_model(path)``, ``diagnosis.model``, ``estimate.model``).
         fmu: an FMI 2.0 co-simulation FMU of the grey box (:mod:`~torchpaml._export.fmu`).
+        fmu_me: an FMI 2.0 model-exchange FMU of the grey box, a sampled-data model at the records' sampling interval:
+            what FMPy's ``simulate_fmu`` with an input table runs as the model runs (:mod:`~torchpaml._export.fmu`).
         onnx: the one-step map as ONNX (:mod:`~torchpaml._export.onnx_step`).
         code: the closed form and its step as text (:mod:`~torchpaml._export.code`), the language by the suffix:
             ``.py`` Python, ``.c``/``.h`` C, ``.tex`` LaTeX.
@@ -31,8 +33,9 @@ def export_model(model: FittedModel, *, fmu: str | Path | None = None, onnx: str
     the exporter does not know (before anything is written), a residual, an implicit solver, a missing C compiler
     or FMI headers for the FMU.
     """
-    if fmu is None and onnx is None and code is None:
-        raise ConfigurationError("nothing to export: name at least one of fmu=, onnx=, code= (--fmu, --onnx, --code)")
+    if fmu is None and onnx is None and code is None and fmu_me is None:
+        raise ConfigurationError("nothing to export: name at least one of fmu=, fmu_me=, onnx=, code= (--fmu, "
+                                 "--fmu-me, --onnx, --code)")
     printer = None if code is None else LANGUAGES.get(Path(code).suffix)
     if code is not None and printer is None:
         raise ConfigurationError(f"the code file {code} names no language I print; use .py (Python), .c or .h (C), or "
@@ -47,4 +50,6 @@ def export_model(model: FittedModel, *, fmu: str | Path | None = None, onnx: str
         written.append(write_onnx(step, onnx))
     if fmu is not None:
         written.append(write_fmu(step, fmu))
+    if fmu_me is not None:
+        written.append(write_fmu(step, fmu_me, "model-exchange", model.step))
     return written

@@ -19,7 +19,7 @@ commands:
   diagnose   find the effect a physics model is missing (torchpaml diagnose --help)
   fleet      diagnose every unit of a fleet on Ray, and see which ones changed (torchpaml fleet --help)
   simulate   write noisy measurements of library physics plus effects, or (--model) a saved model's prediction
-  export     write a saved model as an FMU, an ONNX step and code (torchpaml export --help)
+  export     write a saved model as FMUs, an ONNX step and code (torchpaml export --help)
   track      follow a running device on a saved model and flag when it stops matching (torchpaml track --help)
   paper      reproduce the paper's numerical results
   fit, validate, test
@@ -108,13 +108,16 @@ def _export(args: argparse.Namespace) -> None:
     from torchpaml._export import export_model
     from torchpaml._model import load_model
 
-    written = export_model(load_model(args.model, trust=args.trust), fmu=args.fmu, onnx=args.onnx, code=args.code)
+    written = export_model(load_model(args.model, trust=args.trust), fmu=args.fmu, fmu_me=args.fmu_me, onnx=args.onnx,
+                           code=args.code)
     print("wrote " + ", ".join(str(p) for p in written))
 
 
 def _export_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", required=True, help="a saved model (model.pt of torchpaml diagnose)")
     parser.add_argument("--fmu", help="FMU to write (FMI 2.0 co-simulation; needs a C compiler and FMPy's headers)")
+    parser.add_argument("--fmu-me", help="FMU to write as FMI 2.0 model exchange, a sampled-data model at the "
+                        "records' sampling interval: what FMPy's simulate_fmu with an input table runs as the model runs")
     parser.add_argument("--onnx", help="ONNX file to write: the model's one-step map")
     parser.add_argument("--code", help="code to write, the language by the suffix: .py, .c or .h, .tex")
     _trust_argument(parser)
