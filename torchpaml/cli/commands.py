@@ -124,12 +124,38 @@ def _export_arguments(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(run=_export)
 
 
+def _track_fleet(args: argparse.Namespace) -> None:
+    """``track --units DIR``: every unit on its own model, on Ray (:mod:`torchpaml.cli.fleet_track`)."""
+    from torchpaml.cli.fleet_track import FLEET_TRACK_FILE, fleet_table, track_fleet
+
+    given = [name for name in ("model", "data", "noise", "x0") if getattr(args, name)]
+    if given:
+        raise ConfigurationError(f"track --units takes each unit's model.pt and stream.csv from its folder: drop "
+                                 f"{', '.join('--' + n for n in given)} (noise and x0 are per device)")
+    if args.workers < 1:
+        raise ConfigurationError(f"--workers must be at least 1, got {args.workers}")
+    options = {"window": args.window, "alpha": args.alpha, "attribution": args.attribution, "hold": args.hold,
+               "process": tuple(args.process_noise) if args.process_noise else None}
+    with progress_lines(f"{args.prog} track", enabled=not args.quiet):
+        fleet = track_fleet(Path(args.units), Path(args.out), options, tuple(args.trust), address=args.address,
+                            workers=args.workers)
+    print(fleet_table(fleet["units"]), end="")
+    changed = [row["unit"] for row in fleet["units"] if row["changed"]]
+    print(f"{len(fleet['units'])} units in {fleet['seconds']:.0f} s; changed: {changed or 'none'}; wrote "
+          f"{Path(args.out) / FLEET_TRACK_FILE}, fleet_track.md and one folder per unit")
+
+
 def _track(args: argparse.Namespace) -> None:
     from torchpaml._data import Record
     from torchpaml._model import load_model
     from torchpaml._render.tracking import write_tracking
     from torchpaml._track import track
 
+    if args.units:
+        return _track_fleet(args)
+    if not (args.model and args.data):
+        raise ConfigurationError("track needs --model and --data (one device), or --units (a fleet: one folder per unit "
+                                 "with model.pt and stream.csv)")
     model = load_model(args.model, trust=args.trust)
     record = Record.from_csv(args.data, channels=(model.inputs, model.outputs), hold=args.hold,
                              missing_outputs=True)
@@ -153,10 +179,15 @@ def _trust_argument(parser: argparse.ArgumentParser) -> None:
 
 
 def _track_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--model", required=True, help="a saved model (model.pt of torchpaml diagnose)")
-    parser.add_argument("--data", required=True, help="CSV of the stream: t, the model's inputs and outputs (an "
-                        "empty or NaN output cell is a missing measurement, predicted through)")
-    parser.add_argument("--out", required=True, help="folder for track.json and track.png")
+    parser.add_argument("--model", help="a saved model (model.pt of torchpaml diagnose)")
+    parser.add_argument("--data", help="CSV of the stream: t, the model's inputs and outputs (an empty or NaN output "
+                        "cell is a missing measurement, predicted through)")
+    parser.add_argument("--out", required=True, help="folder for track.json and track.png (with --units: one folder "
+                        "per unit, fleet_track.json and fleet_track.md)")
+    parser.add_argument("--units", help="a fleet instead of --model and --data: a folder with one sub-folder per unit, "
+                        "each holding model.pt and stream.csv, tracked on Ray")
+    parser.add_argument("--address", help="with --units: a running Ray cluster to join; default a local Ray")
+    parser.add_argument("--workers", type=int, default=2, help="with --units: cores of the local Ray (default 2)")
     parser.add_argument("--window", type=float, default=0.5, help="the detector's window, s; the start is estimated "
                         "on the stream's first window (default 0.5)")
     parser.add_argument("--alpha", type=float, default=1e-9,

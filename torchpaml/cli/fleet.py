@@ -28,7 +28,8 @@ from torchpaml._render.fleet import write_fleet_report
 from torchpaml.cli.diagnose import SWITCHES, check_options, diagnose_parser, normalise_arguments, resolve_models
 from torchpaml.cli.fleet_unit import diagnose_unit, finished
 
-__all__ = ["FLEET_FILE", "THREAD_VARIABLES", "diagnose_fleet", "run_fleet", "worker_threads"]
+__all__ = ["FLEET_FILE", "THREAD_VARIABLES", "diagnose_fleet", "find_units", "ray_module", "run_fleet", "thread_environment",
+           "worker_threads"]
 
 log = logging.getLogger(__name__)
 
@@ -40,7 +41,7 @@ FLEET_FILE = "fleet.json"
 FLEET_ARGUMENTS = ("units", "out", "address", "workers", "force", "quiet")
 
 
-def _ray():
+def ray_module():
     try:
         import ray
     except ImportError:
@@ -56,7 +57,7 @@ def worker_threads(workers: int) -> int:
 
 
 @contextlib.contextmanager
-def _thread_environment(threads: int):
+def thread_environment(threads: int):
     """:data:`THREAD_VARIABLES` set to ``threads`` while the block runs (the processes it starts inherit them), then
     restored."""
     before = {name: os.environ.get(name) for name in THREAD_VARIABLES}
@@ -71,15 +72,15 @@ def _thread_environment(threads: int):
                 os.environ[name] = value
 
 
-def find_units(folder: Path) -> list[Path]:
-    """Every sub-folder of ``folder`` (hidden ones aside) is a unit, in name order."""
+def find_units(folder: Path, holding: str = "train.csv and validation.csv") -> list[Path]:
+    """Every sub-folder of ``folder`` (hidden ones aside) is a unit, in name order; ``holding`` names what each unit
+    folder holds, in the refusals."""
     if not folder.is_dir():
         raise DataError(f"--units {folder} is not a folder; give a folder with one sub-folder per unit, each holding "
-                        "train.csv and validation.csv")
+                        f"{holding}")
     units = sorted(p for p in folder.iterdir() if p.is_dir() and not p.name.startswith("."))
     if not units:
-        raise DataError(f"--units {folder} has no unit folders; put one folder per unit in it, each holding "
-                        "train.csv and validation.csv")
+        raise DataError(f"--units {folder} has no unit folders; put one folder per unit in it, each holding {holding}")
     return units
 
 
@@ -103,12 +104,12 @@ def diagnose_fleet(units: Path, out: Path, options: dict, *, address: str | None
     rows = {} if force else {f.name: row for f in folders if (row := finished(out, f.name)) is not None}
     skipped = sorted(rows)
     todo = [f for f in folders if f.name not in rows]
-    ray = _ray()
+    ray = ray_module()
     start = time.perf_counter()
     startup = 0.0
     if todo:
         threads = worker_threads(workers)
-        with _thread_environment(threads):  # the local workers inherit it (a runtime_env costs 0.5 s of their start)
+        with thread_environment(threads):  # the local workers inherit it (a runtime_env costs 0.5 s of their start)
             ray.init(address=address, num_cpus=None if address else workers, include_dashboard=False,
                      log_to_driver=False, logging_level=logging.ERROR)
         startup = time.perf_counter() - start
