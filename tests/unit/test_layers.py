@@ -9,7 +9,7 @@ import torchpaml
 ROOT = Path(torchpaml.__file__).parent
 #: The layers from the bottom up: a layer imports only layers before it (the top-level helpers are their own; the
 #: public named modules, last, only gather names).
-ORDER = ["_errors", "_arguments", "_grid", "_signals", "_parameters", "_budget", "_symbolic", "_simulate", "_physics", "_metrics",
+ORDER = ["_errors", "_text", "_arguments", "_grid", "_signals", "_parameters", "_budget", "_symbolic", "_simulate", "_physics", "_metrics",
          "_data", "_residual", "_fit", "_certificates", "_model", "_export", "_track", "_diagnostics", "_render", "_leaderboard", "_paper", "_training",
          "cli", "analysis", "engine", "figures", "report", "leaderboard"]
 
