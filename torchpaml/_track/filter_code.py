@@ -200,9 +200,10 @@ class CompiledFilter:
         outputs written in place; returns the C's status (module docstring). The caller checks the arrays."""
         return self._run(len(arrays[0]), start, *[a.ctypes.data for a in arrays])
 
-    def run_at(self, samples: int, start: int, addresses: list[int]) -> int:
-        """:meth:`run_into` on arrays given by their addresses (kept by a caller that reuses its arrays)."""
-        return self._run(samples, start, *addresses)
+    def run_at_addresses(self):
+        """The C function itself, called as ``run(samples, start, *addresses)``: :meth:`run_into` on arrays given by
+        their addresses, for a caller that keeps its arrays and calls once per sample."""
+        return self._run
 
 
 def compiled_filter(step: ExportedStep) -> CompiledFilter:

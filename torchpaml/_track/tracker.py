@@ -167,6 +167,7 @@ class Tracker:
         self._pair = (np.zeros(2), np.zeros((2, m)), np.zeros((2, p)), np.zeros(n), np.zeros((n, n)),
                       np.zeros((n, n)), np.diag(np.square(noise)), np.zeros((2, p)), np.zeros(2), np.zeros((2, n)))
         self._addresses = [a.ctypes.data for a in self._pair]
+        self._run, self._sizes = self.filter.run_at_addresses(), (m, p)
         self._started = False
         self._waiting: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # samples before the start is known
         self._waited = 0
@@ -219,6 +220,8 @@ class Tracker:
             self.detector_from = float(t[0])
         if self._process is not None:
             Q = np.diag(np.square(self._process))
+        elif self.model.uncertainty is None:
+            Q = np.zeros_like(P0)  # a model not saved from a fit: no uncertainty to drift by
         else:
             Q = process_noise_of_fit(self.model, states_along(self.model, window, x0, self.substeps), window,
                                      self.substeps, self.samples)
@@ -280,23 +283,26 @@ class Tracker:
             t, u, y = self._sample(t, u, y)
             alarms = self._advance(np.array([t]), u[None], y[None])[4]
             return alarms[0] if alarms else None
-        pair = self._pair  # the fast path: sizes checked here, a non-finite input by the C, time by one comparison
+        times, inputs, outputs = self._pair[:3]  # the fast path: sizes checked here, a non-finite input by the C
         try:
             sizes = (len(u), len(y))
         except TypeError:
             sizes = None
-        if sizes != (pair[1].shape[1], pair[2].shape[1]) or not t > pair[0][1]:
+        if sizes != self._sizes or not t > times[1]:
             self._sample(t, u, y)  # raises the one-line refusal
-        for i, value in enumerate((t, u, y)):
-            pair[i][0] = pair[i][1]
-            pair[i][1] = value
-        self._check(self.filter.run_at(2, 1, self._addresses), pair[0])
-        innovation = pair[7][1][0]
-        self.missing += innovation != innovation  # NaN: the measurement was missing
-        self._history.append((t, pair[1][1], pair[2][1], pair[9][1], pair[8][1]))
+        times[0], inputs[0], outputs[0] = times[1], inputs[1], outputs[1]
+        times[1], inputs[1], outputs[1] = t, u, y
+        failed = self._run(2, 1, *self._addresses)
+        if failed:
+            self._check(failed, times)
+        innovation = self._pair[7][1]
+        self.missing += innovation[0] != innovation[0]  # NaN: the measurement was missing
+        self._history.append((t, inputs[1], outputs[1], self._pair[9][1], self._pair[8][1]))
         statistic = self._history.window_sum(self.samples)
         if self._crosses(statistic):
             self._pending.append((self._history.count - 1, float(t), statistic))
+        if not self._pending:
+            return None
         named = self._named()
         return named[0] if named else None
 
