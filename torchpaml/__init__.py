@@ -35,6 +35,7 @@ from torchpaml._diagnostics import (
     diagnose,
 )
 from torchpaml._errors import (
+    CompiledPathWarning,
     ConfigurationError,
     DataError,
     DomainError,
@@ -117,7 +118,7 @@ __all__ = [
     "HybridSystem", "PhysicsFit", "ResidualFit", "JointFit", "RecordDataModule",
     # errors
     "ConfigurationError", "DataError", "DomainError", "ResolutionError", "SimulationError", "PhysicsError",
-    "TorchpamlError",
+    "TorchpamlError", "CompiledPathWarning",
 ]
 
 #: Names whose module imports Lightning: loaded on first access, so that ``import torchpaml`` stays light.

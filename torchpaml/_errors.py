@@ -6,8 +6,8 @@ Each also derives from the built-in exception that code written before the famil
 exception is a bug in torchpaml and is printed with its traceback (:mod:`torchpaml.cli`).
 """
 
-__all__ = ["ConfigurationError", "DataError", "DomainError", "PhysicsError", "ResolutionError", "SimulationError",
-           "TorchpamlError"]
+__all__ = ["CompiledPathWarning", "ConfigurationError", "DataError", "DomainError", "PhysicsError", "ResolutionError",
+           "SimulationError", "TorchpamlError"]
 
 
 class TorchpamlError(Exception):
@@ -37,3 +37,9 @@ class DomainError(TorchpamlError, ValueError):
 
 class PhysicsError(TorchpamlError, ValueError):
     """A user's physics that cannot be simulated as written: a method that raises, a wrong shape, NaN at the start."""
+
+
+class CompiledPathWarning(UserWarning):
+    """The compiled path (C from the physics' closed form) could not be built or loaded on this machine: no C compiler,
+    a cache folder that cannot be written, a library that does not load, a compile that fails or hangs. The simulation
+    goes on in the torch engine, with the same results, slower; the message says why and how to fix it."""

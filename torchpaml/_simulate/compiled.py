@@ -29,6 +29,8 @@ reports where the simulation blew up), or a ``torch.func`` transform running (``
 from __future__ import annotations
 
 import ctypes
+import logging
+import warnings
 import weakref
 
 import numpy as np
@@ -36,14 +38,16 @@ import sympy
 import torch
 from sympy.printing.c import C99CodePrinter
 
-from torchpaml._errors import ConfigurationError
+from torchpaml._errors import CompiledPathWarning, ConfigurationError
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.method import Method
 from torchpaml._symbolic.aten import interpret
-from torchpaml._symbolic.compiler import cached_library, compiler
+from torchpaml._symbolic.compiler import UnbuildableError, cached_library, compiler, loaded
 from torchpaml._symbolic.trace import traced
 
-__all__ = ["MAX_PARAMETERS", "MIN_STEPS", "sequential_states"]
+__all__ = ["MAX_PARAMETERS", "MIN_STEPS", "compiled_form", "sequential_states", "warn_once"]
+
+log = logging.getLogger(__name__)
 
 #: Fewest RK4 steps (rows x samples x substeps) for which a physics is compiled: below, the shooting engine
 #: finishes before a model is traced and compiled.
@@ -85,11 +89,13 @@ int simulate_rows(int rows, int samples, int substeps, int foh, const double *t,
 
 
 class _Compiled:
-    """One physics' compiled ``simulate_rows`` and where its parameter array is read from."""
+    """One physics' closed form in the parameter symbols ``p_[k]`` (:attr:`rates`, :attr:`output`), its compiled
+    ``simulate_rows``, and where its parameter array is read from (:attr:`targets`: each tensor's ``torch.export``
+    target, its first symbol and its size, in the array's order)."""
 
     def __init__(self, physics: Dynamics):
         program = traced(physics)
-        tensors, self._sources, count = {}, [], 0
+        tensors, self._sources, self.targets, count = {}, [], [], 0
         named = {**dict(physics.named_parameters()), **dict(physics.named_buffers())}
         for spec in program.graph_signature.input_specs:
             if spec.target is None or spec.target in program.constants:
@@ -99,16 +105,22 @@ class _Compiled:
             symbols = [sympy.Symbol(f"p_[{count + k}]", real=True) for k in range(size)]
             tensors[spec.target] = np.array(symbols, dtype=object).reshape(tuple(named[name].shape))
             self._sources.append(self._locate(physics, name))
+            self.targets.append((name, count, size))
             count += size
         n, m = physics.state_dim, physics.input_dim
-        values = {"t": np.array([sympy.Symbol("t_", real=True)], dtype=object),
-                  "x": np.array([[sympy.Symbol(f"x_[{i}]", real=True) for i in range(n)]], dtype=object),
-                  "u": np.array([[sympy.Symbol(f"u_[{j}]", real=True) for j in range(m)]], dtype=object)}
-        rates, _ = interpret(program, values, physics.display_name, tensors)
-        library = cached_library(_source(list(rates.reshape(-1)), n, m), "simulate", "the compiled simulation")
-        self._run = ctypes.CDLL(str(library)).simulate_rows
+        self.symbols = {"t": sympy.Symbol("t_", real=True), "x": [sympy.Symbol(f"x_[{i}]", real=True) for i in range(n)],
+                        "u": [sympy.Symbol(f"u_[{j}]", real=True) for j in range(m)],
+                        "p": [sympy.Symbol(f"p_[{k}]", real=True) for k in range(count)]}
+        values = {"t": np.array([self.symbols["t"]], dtype=object), "x": np.array([self.symbols["x"]], dtype=object),
+                  "u": np.array([self.symbols["u"]], dtype=object)}
+        rates, output = interpret(program, values, physics.display_name, tensors)
+        self.rates, self.output = list(rates.reshape(-1)), list(output.reshape(-1))
+        self.name = physics.display_name
+        library = cached_library(_source(self.rates, n, m), "simulate", "the compiled simulation")
+        self._run = loaded(library).simulate_rows
         self._run.restype = ctypes.c_int
         self._run.argtypes = [ctypes.c_int] * 4 + [ctypes.c_void_p] * 5
+        self.sensitivities = None  # the compiled Jacobian (:mod:`~torchpaml._simulate.compiled_jacobian`), on demand
 
     @staticmethod
     def _locate(physics: Dynamics, name: str) -> tuple:
@@ -133,15 +145,30 @@ class _Compiled:
         return torch.from_numpy(states)
 
 
-def _source(rates: list, n: int, m: int) -> str:
-    """The C of ``rates(t_, x_, u_, p_, out_)`` (common subexpressions first) and of the RK4 loop :data:`_LOOP`."""
+def c_function(name: str, arguments: str, assignments: dict[str, sympy.Expr]) -> str:
+    """``static void name(arguments)`` that evaluates ``assignments`` ({C lvalue: expression}), common
+    subexpressions first: the one printer of every compiled function."""
     printer = C99CodePrinter()
-    shared, reduced = sympy.cse(rates, symbols=sympy.numbered_symbols("c_"))
+    shared, reduced = sympy.cse(list(assignments.values()), symbols=sympy.numbered_symbols("c_"))
     body = "".join(f"    const double {name} = {printer.doprint(value)};\n" for name, value in shared)
-    body += "".join(f"    out_[{i}] = {printer.doprint(value)};\n" for i, value in enumerate(reduced))
-    return (f"#include <math.h>\n#define N_STATES {n}\n#define N_INPUTS {m}\n"
-            "static void rates(double t_, const double *x_, const double *u_, const double *p_, double *out_) {\n"
-            f"    (void)t_; (void)x_; (void)u_; (void)p_;\n{body}}}\n" + _LOOP)
+    body += "".join(f"    {target} = {printer.doprint(value)};\n"
+                    for target, value in zip(assignments, reduced, strict=True))
+    unused = "".join(f"(void){a.split('*')[-1].split()[-1]}; " for a in arguments.split(","))
+    return f"static void {name}({arguments}) {{\n    {unused}\n{body}}}\n"
+
+
+#: The arguments of the compiled ``rates``.
+RATES_ARGUMENTS = "double t_, const double *x_, const double *u_, const double *p_, double *out_"
+
+
+def rates_function(rates: list) -> str:
+    """The C of ``rates(t_, x_, u_, p_, out_)``: what the compiled RK4 and the compiled Jacobian step with."""
+    return c_function("rates", RATES_ARGUMENTS, {f"out_[{i}]": value for i, value in enumerate(rates)})
+
+
+def _source(rates: list, n: int, m: int) -> str:
+    """The C of ``rates`` (:func:`rates_function`) and of the RK4 loop :data:`_LOOP`."""
+    return f"#include <math.h>\n#define N_STATES {n}\n#define N_INPUTS {m}\n" + rates_function(rates) + _LOOP
 
 
 def _signature(physics: Dynamics) -> tuple:
@@ -161,19 +188,39 @@ _FORMS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _compiled(physics: Dynamics) -> _Compiled | None:
-    """The compiled form of ``physics`` (made once per structure), ``None`` where it cannot be compiled."""
+    """The compiled form of ``physics`` (made once per structure), ``None`` where it cannot be compiled: a physics the
+    tracer or the operation table cannot take, or too many parameters, is logged once per structure (the engine is
+    its path); a machine that cannot compile or load C warns once (:class:`~torchpaml.CompiledPathWarning`)."""
     signature = _signature(physics)
     kept = _FORMS.setdefault(physics, {})
     if signature in kept:
         return kept[signature]
     form = None
-    if compiler() is not None and sum(p.numel() for p in physics.parameters()) <= MAX_PARAMETERS:
+    if compiler() is None:
+        warn_once("no C compiler (cc, gcc) is on PATH; install one")
+    elif sum(p.numel() for p in physics.parameters()) > MAX_PARAMETERS:
+        log.info("%s is simulated by the torch engine: more than %d parameter elements", physics.display_name,
+                 MAX_PARAMETERS)
+    else:
         try:
             form = _Compiled(physics)
-        except ConfigurationError:  # not traceable, an operation the table lacks: the shooting engine simulates it
-            form = None
+        except UnbuildableError as error:
+            warn_once(str(error))
+        except ConfigurationError as error:  # not traceable, an operation the table lacks: the engine simulates it
+            log.info("%s is simulated by the torch engine: %s", physics.display_name, error)
     kept[signature] = form
     return form
+
+
+_WARNED: set[str] = set()
+
+
+def warn_once(reason: str) -> None:
+    """One :class:`~torchpaml.CompiledPathWarning` per reason and process."""
+    if reason not in _WARNED:
+        _WARNED.add(reason)
+        warnings.warn(f"the compiled simulation is not available ({reason}); the torch engine simulates instead, "
+                      "slower, with the same results", CompiledPathWarning, stacklevel=3)
 
 
 def _transformed() -> bool:
@@ -181,15 +228,27 @@ def _transformed() -> bool:
     return torch._C._functorch.peek_interpreter_stack() is not None
 
 
+def compiled_form(physics: Dynamics, solver: Method, steps: int | None = None) -> _Compiled | None:
+    """The compiled form of ``physics`` for ``solver``; ``None`` where the module docstring's conditions leave it to
+    the shooting engine. ``steps`` (rows x samples x substeps) below :data:`MIN_STEPS` uses a form already made for
+    this structure, and makes none."""
+    if not solver.compiles or _transformed():
+        return None
+    if solver.compiles != "rk4":  # the forward library is RK4's; TR-BDF2 runs in the sensitivities' one
+        steps = None
+    if steps is not None and steps < MIN_STEPS:
+        return _FORMS.get(physics, {}).get(_signature(physics))
+    return _compiled(physics)
+
+
 def sequential_states(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: Method,
                       hold: str) -> torch.Tensor | None:
     """The states (batch, time, n_state) of ``physics`` from ``x0`` (batch, n_state) driven by ``u`` (batch, time,
     n_input) on ``t`` (time,) by RK4 at ``solver.substeps`` in C, detached; ``None`` where the module docstring's
     conditions leave it to the shooting engine."""
-    steps = u.shape[0] * (len(t) - 1) * solver.substeps
-    if not solver.compiles or steps < MIN_STEPS or _transformed():
+    if solver.compiles != "rk4":
         return None
-    form = _compiled(physics)
+    form = compiled_form(physics, solver, u.shape[0] * (len(t) - 1) * solver.substeps)
     if form is None:
         return None
     states = form(t, u, x0, solver.substeps, hold).to(x0.dtype)

@@ -22,7 +22,7 @@ class Method(Protocol):
     middle: float
     coefficients: tuple[float, ...]
     stability: float | None
-    compiles: bool
+    compiles: str | None
 
     def at(self, substeps: int) -> Method:
         """The method with ``substeps`` fixed."""

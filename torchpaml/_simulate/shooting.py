@@ -50,7 +50,7 @@ import math
 import torch
 from torch.nn.utils import parametrize
 
-from torchpaml._simulate.compiled import sequential_states
+from torchpaml._simulate.compiled_jacobian import compiled_states
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.method import Method
 from torchpaml._errors import ConfigurationError, SimulationError
@@ -378,7 +378,7 @@ def solve_shooting(
     if warm is not None and not isinstance(warm, WarmStart):
         raise ConfigurationError(f"warm must be a torchpaml.WarmStart kept per record (warm=tp.WarmStart()), got "
                         f"{type(warm).__name__}")
-    exact = sequential_states(physics, t, u, x0, solver, hold)
+    exact = compiled_states(physics, t, u, x0, solver, hold)
     if exact is not None:
         guess = exact
     elif warm is not None and warm.states is not None:
@@ -431,7 +431,7 @@ def simulate_shooting(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: t
     if len(t) < 2:
         return x0[:, None]
     if not torch.is_grad_enabled():
-        states = sequential_states(physics, t, u, x0, solver, options.get("hold", "foh"))
+        states = compiled_states(physics, t, u, x0, solver, options.get("hold", "foh"))
         if states is not None:
             if warm is not None:
                 warm.states = states

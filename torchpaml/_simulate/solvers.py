@@ -40,6 +40,7 @@ import torch
 from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._grid import uniform_step
 from torchpaml._simulate.blowup import checked_output
+from torchpaml._simulate.compiled_jacobian import compiled_jacobian
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.fixed_step import simulate_fixed_step
 from torchpaml._simulate.lti import exact_step, simulate_lti
@@ -185,9 +186,16 @@ class FixedStep(Solver):
     #: $|h\lambda|$ up to which the method is stable, ``None`` for an implicit, L-stable one
     #: (:mod:`~torchpaml._simulate.stiffness`).
     stability: ClassVar[float | None]
-    #: Whether the method is classical RK4, which the engine also runs compiled from the closed form
-    #: (:mod:`~torchpaml._simulate.compiled`); a new method steps by its ``sweep`` alone.
-    compiles: ClassVar[bool] = False
+    #: The method's compiled form (``"rk4"``, ``"trbdf2"``), which the engine runs in C from the physics' closed form
+    #: (:mod:`~torchpaml._simulate.compiled`, :mod:`~torchpaml._simulate.compiled_jacobian`); ``None``: a new
+    #: method, or a subclass with its own ``sweep``, steps by its ``sweep`` alone.
+    compiles: ClassVar[str | None] = None
+
+    def __init_subclass__(cls, **kwargs):
+        """A subclass with its own ``sweep`` steps by it: it is not compiled unless it says so (``compiles``)."""
+        super().__init_subclass__(**kwargs)
+        if "sweep" in vars(cls) and "compiles" not in vars(cls):
+            cls.compiles = None
 
     def __post_init__(self):
         m = self.substeps
@@ -222,6 +230,9 @@ class FixedStep(Solver):
         return simulate_shooting(physics, t, u, x0, self.stepping(), warm, hold=hold)
 
     def jacobian(self, physics: Dynamics, raw, t, u, x0, *, warm=None, hold="foh", initial_state=False):
+        compiled = compiled_jacobian(physics, raw, t, u, x0, self.stepping(), hold, initial_state)
+        if compiled is not None:
+            return compiled
         return shooting_jacobian(physics, raw, t, u, x0, self.stepping(), warm, initial_state, hold)
 
     def halved(self) -> FixedStep:
@@ -245,7 +256,7 @@ class RK4(FixedStep):
     middle: ClassVar[float] = 0.5
     coefficients: ClassVar[tuple[float, ...]] = RK4_COEFFICIENTS
     stability: ClassVar[float | None] = RK4_STABILITY
-    compiles: ClassVar[bool] = True
+    compiles: ClassVar[str | None] = "rk4"
 
     def sweep(self, physics: Dynamics, x, stages):
         return rk4_sweep(physics, x, stages, self.substeps)
@@ -270,6 +281,7 @@ class TRBDF2(FixedStep):
     middle: ClassVar[float] = GAMMA
     coefficients: ClassVar[tuple[float, ...]] = TRBDF2_COEFFICIENTS
     stability: ClassVar[float | None] = None
+    compiles: ClassVar[str | None] = "trbdf2"
 
     def sweep(self, physics: Dynamics, x, stages):
         return trbdf2_sweep(physics, x, stages, self.substeps)

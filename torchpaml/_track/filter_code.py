@@ -29,7 +29,7 @@ import sympy
 from sympy.printing.c import C99CodePrinter
 
 from torchpaml._export.code import ExportedStep, c_code, c_unpacking
-from torchpaml._symbolic.compiler import cached_library
+from torchpaml._symbolic.compiler import cached_library, loaded
 
 __all__ = ["CompiledFilter", "compiled_filter", "filter_source"]
 
@@ -190,7 +190,7 @@ class CompiledFilter:
 
     def __init__(self, library: Path, states: int, inputs: int, outputs: int):
         self.states, self.inputs, self.outputs = states, inputs, outputs
-        self._library = ctypes.CDLL(str(library))
+        self._library = loaded(library)
         self._run = self._library.track_block
         self._run.restype = ctypes.c_int
         self._run.argtypes = [ctypes.c_int, ctypes.c_int] + [ctypes.c_void_p] * 10
