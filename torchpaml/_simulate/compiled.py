@@ -37,6 +37,7 @@ import numpy as np
 import sympy
 import torch
 from sympy.printing.c import C99CodePrinter
+from torch import nn
 
 from torchpaml._errors import CompiledPathWarning, ConfigurationError
 from torchpaml._simulate.dynamics import Dynamics
@@ -172,15 +173,20 @@ def _source(rates: list, n: int, m: int) -> str:
 
 
 def _signature(physics: Dynamics) -> tuple:
-    """What a compiled form depends on besides the parameters' values: each module's class and plain attributes, and
-    its tensors' names, types and shapes (``functional_call`` puts plain tensors in the parameters' place, which
-    ``torch.export`` refuses: that structure is then left to the engine, and the module's own is still compiled)."""
+    """What a compiled form depends on besides the parameters' values: each module's class and plain attributes, its
+    tensors' names, types and shapes, and the values of its tensor attributes that are neither parameters nor buffers
+    (``torch.export`` prints those into the closed form as numbers: a changed one needs a new compile).
+    ``functional_call`` puts plain tensors in the parameters' place, which ``torch.export`` refuses: that structure
+    is then left to the engine, and the module's own is still compiled."""
     plain = (bool, int, float, str, tuple, type(None))
     return tuple((name, type(module).__qualname__,
                   tuple(sorted((k, repr(v)) for k, v in vars(module).items()
                                if not k.startswith("_") and k != "training" and isinstance(v, plain))),
                   tuple((k, type(v).__name__, tuple(v.shape))
-                        for k, v in (*module._parameters.items(), *module._buffers.items()) if v is not None))
+                        for k, v in (*module._parameters.items(), *module._buffers.items()) if v is not None),
+                  tuple((k, tuple(v.shape), v.detach().cpu().to(torch.float64).numpy().tobytes())
+                        for k, v in sorted(vars(module).items(), key=lambda item: item[0])
+                        if isinstance(v, torch.Tensor) and not isinstance(v, nn.Parameter)))
                  for name, module in physics.named_modules())
 
 
