@@ -10,23 +10,17 @@ While a fit evaluates, its budget is the *active* one (:meth:`Budget.active`), a
 :func:`checkpoint` at every Newton sweep: an evaluation that runs away inside the engine (Newton that does not settle
 and lengthens its segments towards sequential stepping) stops there too, not only between evaluations.
 
-The limit is the larger of a time in seconds and a count of evaluations at the fit's own cost per evaluation,
-capped by an absolute deadline:
+**The limit is a count of evaluations**, the same on every machine: a fit may take $E$ evaluations, and
+:class:`OverBudget` ends it after the $E$-th. A time enters only as a safety net: the diagnosis' deadline (and a user's
+own ``seconds``), checked between evaluations and at every Newton sweep of the engine; where it binds, the fit's
+progress line says that the wall clock stopped it, and the answer may then depend on the machine's speed.
 
-$$ \text{limit} = \min\big(\max(T,\; E\,t_1),\; t_{\text{deadline}} - t_{\text{start}}\big), $$
-
-where $t_1$ is the costliest of the fit's first :data:`SCALE_EVALUATIONS` evaluations; until the first one ends, the
-deadline alone limits the fit.
-
-The ranking gives each refit ten times its rung's own fit (:data:`REFIT_BUDGET`), in seconds and in evaluations:
-$T = 10\,t_{\text{fit}}$ and $E = 10\,n_{\text{fit}}$, its fit's evaluations redone at the refit's own cost $t_1$.
+The ranking gives each refit ten times its rung's own fit in evaluations (:data:`REFIT_BUDGET`): $E = 10\,n_{\text{fit}}$.
 A rung's fit is all the fitting that made its model: the fit of the physics on the first rung; on the next ones, the
-refit that found the added effect and the fit that takes it to the last digits. The evaluations count where the
-rung simulates on a cheaper path than the refit: a linear rung's exact path, against the nonlinear engine of any
-refit on it, or a refit whose model carries states of its own. A rung's fit from its refit's optimum (which stopped
-at a criterion step of 0.1) needs a few evaluations: it may take :data:`RUNG_FIT_BUDGET` times its refit, and one
-over it leaves the rung at its refit's parameters, and says so. The discovery's closed-form refits are several fits
-each (the form, its pruning, what remains): they may take ten fits of ``max_nfev`` evaluations at their own cost.
+refit that found the added effect and the fit that takes it to the last digits. A rung's fit from its refit's optimum
+(which stopped at a criterion step of 0.1) needs a few evaluations: it may take :data:`RUNG_FIT_BUDGET` times its
+refit's, and one over it leaves the rung at its refit's parameters, and says so. The discovery's closed-form refits are
+several fits each (the form, its pruning, what remains): they may take ten fits of ``max_nfev`` evaluations.
 
 The whole diagnosis has a deadline, :data:`DEFAULT_BUDGET` seconds by default, printed in its first line: a fit
 still running then stops, and those not started are not run (reported undecided). Being a time, a limit binds at a
@@ -59,10 +53,6 @@ REFIT_BUDGET = 10.0
 RUNG_FIT_BUDGET = 10.0
 #: Seconds a whole diagnosis may take by default (``diagnose(budget=)``, ``--budget``): ten minutes.
 DEFAULT_BUDGET = 600.0
-#: $t_1$ is the costliest of a fit's first this many evaluations: the step check at a fit's start may raise the
-#: substeps after the first one (a discovery screen of the pendulum was stopped at 0.5 s, 100 times a first
-#: evaluation that the next ones outcost).
-SCALE_EVALUATIONS = 3
 
 
 _ACTIVE: contextvars.ContextVar[Budget | None] = contextvars.ContextVar("torchpaml_budget", default=None)
@@ -82,22 +72,24 @@ def check_budget(budget: float | None) -> None:
 
 
 class OverBudget(RuntimeError):
-    """A fit stopped at its budget; ``seconds`` is the time it had run."""
+    """A fit stopped at its budget; ``seconds`` is the time it had run, ``evaluations`` the evaluations it made."""
 
-    def __init__(self, label: str, seconds: float, limit: float):
-        super().__init__(f"{label} stopped over its budget after {seconds:.1f} s (budget {limit:.1f} s)")
-        self.seconds = seconds
+    def __init__(self, label: str, seconds: float, limit: str, evaluations: int = 0):
+        super().__init__(f"{label} stopped over its budget after {evaluations} evaluations and {seconds:.1f} s "
+                         f"(budget {limit})")
+        self.seconds, self.evaluations = seconds, evaluations
 
 
 @dataclass
 class Budget:
-    """The time a fit may take (module docstring), counted from its creation.
+    """The evaluations a fit may take, with the wall clock as a safety net (module docstring), counted from its
+    creation.
 
     Args:
         label: what the progress lines call the fit, e.g. ``"refitting Pendulum + dynamic_friction"``.
-        seconds: $T$, the limit in seconds (default none).
-        evaluations: $E$, the limit in evaluations at the fit's cost per evaluation, $t_1$ (default none). With
-            neither, only the deadline limits the fit.
+        seconds: a wall-clock limit in seconds (default none): a safety net, which makes a result depend on the
+            machine's speed where it binds.
+        evaluations: $E$, the evaluations the fit may make (default none).
         deadline: an absolute ``time.perf_counter()`` by which the fit must end (default none).
     """
 
@@ -107,7 +99,6 @@ class Budget:
     deadline: float = math.inf
     started: float = field(default_factory=time.perf_counter, init=False)
     count: int = field(default=0, init=False)
-    _scale: float | None = field(default=None, init=False, repr=False)
     _reported: float = field(default=0.0, init=False, repr=False)
 
     @property
@@ -117,12 +108,9 @@ class Budget:
 
     @property
     def limit(self) -> float:
-        """The limit in seconds. Until the first evaluation has ended, the deadline alone: that evaluation sets the
-        scale of $E$, and a first evaluation cut short would leave a refit undecided on a machine that is merely slow."""
+        """The wall-clock limit in seconds: ``seconds`` where given, capped by the deadline."""
         cap = self.deadline - self.started
-        if self._scale is None or (self.seconds is None and self.evaluations is None):
-            return cap
-        return min(max(self.seconds or 0.0, (self.evaluations or 0.0) * self._scale), cap)
+        return cap if self.seconds is None else min(self.seconds, cap)
 
     def restarted(self, label: str, share: float = 1.0) -> Budget:
         """A budget with ``share`` of these limits (the deadline whole), for another fit called ``label``, counted
@@ -131,12 +119,11 @@ class Budget:
                       None if self.evaluations is None else share * self.evaluations, self.deadline)
 
     def describe(self) -> str:
-        """The limits in words, for a progress line: ``"12 s"``, ``"the longer of 12 s and 150 evaluations at its own
-        cost, within the deadline in 580 s"``."""
-        own = f"{self.seconds:.3g} s" if self.seconds is not None else ""
-        if self.evaluations is not None:
-            evaluations = f"{self.evaluations:.0f} evaluations at its own cost"
-            own = f"the longer of {own} and {evaluations}" if own else evaluations
+        """The limits in words, for a progress line: ``"150 evaluations, within the deadline in 580 s"``."""
+        parts = [f"{self.evaluations:.0f} evaluations"] if self.evaluations is not None else []
+        if self.seconds is not None:
+            parts.append(f"{self.seconds:.3g} s")
+        own = " and ".join(parts)
         if self.deadline == math.inf:
             return own or "no limit"
         deadline = f"the deadline in {max(self.deadline - time.perf_counter(), 0.0):.0f} s"
@@ -157,22 +144,24 @@ class Budget:
             _ACTIVE.reset(token)
 
     def enforce(self) -> None:
-        """Raise :class:`OverBudget` past the limit."""
+        """Raise :class:`OverBudget` past the wall-clock limit, saying that the clock bound."""
         elapsed = self.elapsed
         if elapsed > self.limit:
-            raise OverBudget(self.label, elapsed, self.limit)
+            log.info("%s: stopped by the wall clock after %.1f s (%s): on a faster machine it could have gone on",
+                     self.label, elapsed, self.describe())
+            raise OverBudget(self.label, elapsed, f"{self.limit:.1f} s of wall clock", self.count)
 
     def check(self, cost: float, evaluation_seconds: float) -> None:
-        """Report an evaluation whose fit's lowest cost so far is ``cost``: log progress every :data:`PROGRESS_SECONDS`
-        (the evaluations of every fit under this budget, counted together), raise :class:`OverBudget` past the limit."""
+        """Report an evaluation (of ``evaluation_seconds``) whose fit's lowest cost so far is ``cost``: log progress
+        every :data:`PROGRESS_SECONDS` (the evaluations of every fit under this budget, counted together), raise
+        :class:`OverBudget` once the evaluations reach their limit, or past the wall-clock limit."""
         self.count += 1
-        if self.count <= SCALE_EVALUATIONS:  # the scale: the costliest of the first few evaluations
-            self._scale = max(self._scale or 0.0, evaluation_seconds)
         elapsed = self.elapsed
-        limit = self.limit
         if elapsed - self._reported >= PROGRESS_SECONDS:
             self._reported = elapsed
-            allowed = "" if limit == math.inf else f" of {limit:.0f} s"
             lowest = f"cost {cost:.6g}" if math.isfinite(cost) else "no finite cost yet"
-            log.info("%s: %d evaluations, %s, %.0f s%s", self.label, self.count, lowest, elapsed, allowed)
+            log.info("%s: %d evaluations, %s, %.0f s (budget %s)", self.label, self.count, lowest, elapsed,
+                     self.describe())
+        if self.evaluations is not None and self.count >= self.evaluations:
+            raise OverBudget(self.label, elapsed, f"{self.evaluations:.0f} evaluations", self.count)
         self.enforce()

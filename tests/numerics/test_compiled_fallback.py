@@ -31,8 +31,10 @@ pytestmark = pytest.mark.skipif(compilers.compiler() is None, reason="the compil
 
 
 @pytest.fixture(autouse=True)
-def _fresh_warnings(monkeypatch):
+def _fresh_forms(monkeypatch):
+    """No form or warning kept from another test: each case compiles (or fails to) afresh."""
     monkeypatch.setattr(compiled, "_WARNED", set())
+    monkeypatch.setattr(compiled, "_FORMS", compiled.OrderedDict())
 
 
 def _hard():
@@ -53,7 +55,7 @@ def _engine_fit(record: Record, monkeypatch) -> dict:
     """The fit with the compiled path switched off: the engine's numbers."""
     with monkeypatch.context() as patch:
         patch.setattr(compiled, "compiler", lambda: None)
-        patch.setattr(compiled, "_FORMS", compiled.weakref.WeakKeyDictionary())
+        patch.setattr(compiled, "_FORMS", compiled.OrderedDict())
         patch.setattr(compiled, "_WARNED", set())
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", CompiledPathWarning)
@@ -69,8 +71,8 @@ def _fit_warns(record: Record, match: str) -> dict:
     physics = _hard()
     with pytest.warns(CompiledPathWarning, match=match):
         fitted = fit_physics(physics, record, solver=RK4(substeps=1)).parameters
-    assert compiled._FORMS[physics][compiled._signature(physics)] is None or \
-        compiled._FORMS[physics][compiled._signature(physics)].sensitivities is False
+    form = compiled._FORMS[compiled._signature(physics)]
+    assert form is None or form.sensitivities is False
     return fitted
 
 
@@ -159,7 +161,7 @@ def test_a_physics_the_tracer_cannot_take_is_the_engines_without_a_warning():
     with warnings.catch_warnings():
         warnings.simplefilter("error", CompiledPathWarning)
         fit = fit_physics(physics, record, solver=RK4(substeps=1))
-    assert compiled._FORMS[physics][compiled._signature(physics)] is None
+    assert compiled._FORMS[compiled._signature(physics)] is None
     assert fit.parameters["k"] > 0
 
 

@@ -19,6 +19,9 @@ intervals, identifiability; ``physics.describe(estimate.uncertainty)`` prints th
 Trial steps whose simulation blows up are rejected by the trust region (their residual is inf);
 a start that blows up raises :class:`~torchpaml.SimulationError`.
 
+**One arithmetic path** (:mod:`torchpaml._fit.one_thread`): the fit runs on one thread, so that its numbers do not
+depend on the machine's cores.
+
 **The step check** (:mod:`torchpaml._fit.resolution`): at the optimum the output must not depend on the
 solver's step; where it does, the substeps grow and the fit goes on from the optimum. With the default
 solver, an optimum that RK4 cannot resolve (stiff physics) goes on with the implicit TR-BDF2. The fit
@@ -42,6 +45,7 @@ from torchpaml._data import Record
 from torchpaml._errors import ConfigurationError, ResolutionError
 from torchpaml._fit.fitted_model import FittedModel
 from torchpaml._fit.initial_state import Estimate, InitialState, Rest, as_initial_state
+from torchpaml._fit.one_thread import one_thread
 from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solver
 from torchpaml._fit.trust_region import TrustRegionProblem
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
@@ -168,7 +172,7 @@ def fit_physics(
     problem.evaluate(x)  # raises SimulationError, naming the blow-up, at a bad start
     step_check = _StepCheck(problem)
     result = None
-    with budget.active() if budget is not None else contextlib.nullcontext():  # the step check's simulations too
+    with one_thread(), budget.active() if budget is not None else contextlib.nullcontext():  # the step check's too
         while (resolved := step_check.solver(x, result is not None)) != problem.solver or result is None:
             problem.use(resolved)  # at the start, then at each optimum
             result = least_squares(problem.residual, x, jac=lambda x: problem.evaluate(x)[1], bounds=(lower, upper),

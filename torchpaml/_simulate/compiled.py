@@ -12,9 +12,10 @@ fit's new parameters need no new compile. The expressions are printed as C after
 elimination, and RK4 runs sample after sample for each row: the stage times, the inputs of the hold and the step
 coefficients of :func:`~torchpaml._simulate.steps.rk4_sweep`, so the two agree to rounding (measured: 5e-15
 relative on the hard oscillator). The library is compiled once per machine
-(:func:`~torchpaml._symbolic.compiler.cached_library`), and the compiled form is kept per physics object and
-structure (its modules, their plain attributes, its tensors' names, types and shapes): change one, and the next
-call compiles again.
+(:func:`~torchpaml._symbolic.compiler.cached_library`), and the compiled form is kept per
+structure (its modules, their plain attributes, its tensors' names, types and shapes, the values of tensor attributes
+that are not parameters), shared by every physics object of that structure: change one, and the next call compiles
+again.
 
 **Where it is used.** :func:`~torchpaml._simulate.shooting.simulate_shooting` returns these states where no
 gradient is recorded, and otherwise starts Newton from them: they are the solution, so its first sweep converges
@@ -31,7 +32,7 @@ from __future__ import annotations
 import ctypes
 import logging
 import warnings
-import weakref
+from collections import OrderedDict
 
 import numpy as np
 import sympy
@@ -52,7 +53,7 @@ log = logging.getLogger(__name__)
 
 #: Fewest RK4 steps (rows x samples x substeps) for which a physics is compiled: below, the shooting engine
 #: finishes before a model is traced and compiled.
-MIN_STEPS = 2**15
+MIN_STEPS = 2**12
 #: Most parameter and buffer elements of a physics that is compiled.
 MAX_PARAMETERS = 256
 
@@ -105,7 +106,7 @@ class _Compiled:
             size = named[name].numel()
             symbols = [sympy.Symbol(f"p_[{count + k}]", real=True) for k in range(size)]
             tensors[spec.target] = np.array(symbols, dtype=object).reshape(tuple(named[name].shape))
-            self._sources.append(self._locate(physics, name))
+            self._sources.append(name.rpartition(".")[::2])  # (module path, attribute)
             self.targets.append((name, count, size))
             count += size
         n, m = physics.state_dim, physics.input_dim
@@ -123,23 +124,19 @@ class _Compiled:
         self._run.argtypes = [ctypes.c_int] * 4 + [ctypes.c_void_p] * 5
         self.sensitivities = None  # the compiled Jacobian (:mod:`~torchpaml._simulate.compiled_jacobian`), on demand
 
-    @staticmethod
-    def _locate(physics: Dynamics, name: str) -> tuple:
-        """(module, attribute) holding the tensor ``name``: read at each call, so a replaced tensor is seen."""
-        owner, _, attribute = name.rpartition(".")
-        return physics.get_submodule(owner), attribute
-
-    def parameters(self) -> np.ndarray:
-        """The live values of the parameter array ``p_``, flattened in the compiled order."""
-        parts = [getattr(module, attribute) for module, attribute in self._sources]
+    def parameters(self, physics: Dynamics) -> np.ndarray:
+        """The live values of the parameter array ``p_`` in ``physics`` (any physics of this structure), flattened in
+        the compiled order: read at each call, so a replaced tensor is seen."""
+        parts = [getattr(physics.get_submodule(owner), attribute) for owner, attribute in self._sources]
         if not parts:
             return np.zeros(1)
         return torch.cat([p.detach().reshape(-1).to(torch.float64) for p in parts]).numpy()
 
-    def __call__(self, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, substeps: int, hold: str) -> torch.Tensor:
+    def __call__(self, physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, substeps: int,
+                 hold: str) -> torch.Tensor:
         batch, samples, _ = u.shape
         arrays = [np.ascontiguousarray(a.detach().to(torch.float64).numpy()) for a in (t, u, x0)]
-        parameters = self.parameters()
+        parameters = self.parameters(physics)
         states = np.empty((batch, samples, x0.shape[-1]))
         self._run(batch, samples, substeps, int(hold == "foh"), *[a.ctypes.data for a in arrays],
                   parameters.ctypes.data, states.ctypes.data)
@@ -179,7 +176,7 @@ def _signature(physics: Dynamics) -> tuple:
     ``functional_call`` puts plain tensors in the parameters' place, which ``torch.export`` refuses: that structure
     is then left to the engine, and the module's own is still compiled."""
     plain = (bool, int, float, str, tuple, type(None))
-    return tuple((name, type(module).__qualname__,
+    return tuple((name, type(module).__module__, type(module).__qualname__,
                   tuple(sorted((k, repr(v)) for k, v in vars(module).items()
                                if not k.startswith("_") and k != "training" and isinstance(v, plain))),
                   tuple((k, type(v).__name__, tuple(v.shape))
@@ -190,7 +187,10 @@ def _signature(physics: Dynamics) -> tuple:
                  for name, module in physics.named_modules())
 
 
-_FORMS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: The compiled forms by structure (:func:`_signature`), shared by every physics object of that structure (a ranking's
+#: probes copy a model per strength): the most recent :data:`KEPT_FORMS`.
+_FORMS: OrderedDict = OrderedDict()
+KEPT_FORMS = 512
 
 
 def _compiled(physics: Dynamics) -> _Compiled | None:
@@ -198,9 +198,9 @@ def _compiled(physics: Dynamics) -> _Compiled | None:
     tracer or the operation table cannot take, or too many parameters, is logged once per structure (the engine is
     its path); a machine that cannot compile or load C warns once (:class:`~torchpaml.CompiledPathWarning`)."""
     signature = _signature(physics)
-    kept = _FORMS.setdefault(physics, {})
-    if signature in kept:
-        return kept[signature]
+    if signature in _FORMS:
+        _FORMS.move_to_end(signature)
+        return _FORMS[signature]
     form = None
     if compiler() is None:
         warn_once("no C compiler (cc, gcc) is on PATH; install one")
@@ -214,7 +214,9 @@ def _compiled(physics: Dynamics) -> _Compiled | None:
             warn_once(str(error))
         except ConfigurationError as error:  # not traceable, an operation the table lacks: the engine simulates it
             log.info("%s is simulated by the torch engine: %s", physics.display_name, error)
-    kept[signature] = form
+    _FORMS[signature] = form
+    if len(_FORMS) > KEPT_FORMS:
+        _FORMS.popitem(last=False)
     return form
 
 
@@ -236,14 +238,14 @@ def _transformed() -> bool:
 
 def compiled_form(physics: Dynamics, solver: Method, steps: int | None = None) -> _Compiled | None:
     """The compiled form of ``physics`` for ``solver``; ``None`` where the module docstring's conditions leave it to
-    the shooting engine. ``steps`` (rows x samples x substeps) below :data:`MIN_STEPS` uses a form already made for
-    this structure, and makes none."""
+    the shooting engine, among them ``steps`` (rows x samples x substeps, where given) below :data:`MIN_STEPS`: the
+    path depends on the record alone, never on what this process compiled before."""
     if not solver.compiles or _transformed():
         return None
     if solver.compiles != "rk4":  # the forward library is RK4's; TR-BDF2 runs in the sensitivities' one
         steps = None
     if steps is not None and steps < MIN_STEPS:
-        return _FORMS.get(physics, {}).get(_signature(physics))
+        return None
     return _compiled(physics)
 
 
@@ -257,5 +259,5 @@ def sequential_states(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: t
     form = compiled_form(physics, solver, u.shape[0] * (len(t) - 1) * solver.substeps)
     if form is None:
         return None
-    states = form(t, u, x0, solver.substeps, hold).to(x0.dtype)
+    states = form(physics, t, u, x0, solver.substeps, hold).to(x0.dtype)
     return states if bool(torch.isfinite(states).all()) else None

@@ -413,7 +413,7 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
     columns = _columns(form, raw, physics.state_dim, initial_state)
     if columns is None:
         return None
-    done = run(solver.compiles, form.parameters(), columns, t, u, x0, physics.output_dim, solver.substeps, hold)
+    done = run(solver.compiles, form.parameters(physics), columns, t, u, x0, physics.output_dim, solver.substeps, hold)
     if done is None or not (bool(torch.isfinite(done[0]).all()) and bool(torch.isfinite(done[1]).all())):
         return None
     return done[0].to(x0.dtype), done[1].to(x0.dtype)
@@ -442,5 +442,5 @@ def implicit_states(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: tor
     if compiled is None:
         return None
     form, run = compiled
-    done = run("trbdf2", form.parameters(), [], t, u, x0, physics.output_dim, solver.substeps, hold, states=True)
+    done = run("trbdf2", form.parameters(physics), [], t, u, x0, physics.output_dim, solver.substeps, hold, states=True)
     return None if done is None else done[2].to(x0.dtype)

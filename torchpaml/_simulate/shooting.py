@@ -430,6 +430,9 @@ def simulate_shooting(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: t
     """
     if len(t) < 2:
         return x0[:, None]
+    if warm is not None and not isinstance(warm, WarmStart):
+        raise ConfigurationError(f"warm must be a torchpaml.WarmStart kept per record (warm=tp.WarmStart()), got "
+                                 f"{type(warm).__name__}")
     if not torch.is_grad_enabled():
         states = compiled_states(physics, t, u, x0, solver, options.get("hold", "foh"))
         if states is not None:

@@ -96,8 +96,7 @@ class Prober:
         fresh = [effect for usable in effects.values() for effect in usable if effect.name not in refitted]
         entries, extended = scored(model, fresh, train, fit, ranker.probe) if fresh else ([], {})
         new = {e.effect: e for e in entries}
-        template = Budget(model.display_name, ranker.refit_budget * (ranking.fit_seconds or 0.0),
-                          ranker.refit_budget * fit.evaluations, end)
+        template = Budget(model.display_name, evaluations=ranker.refit_budget * fit.evaluations, deadline=end)
         refits = Refits(model.display_name, train, validation, fit, score, ranking.rule, ranking.initial_state,
                         ranker.max_nfev, template)
         rows = []

@@ -56,10 +56,9 @@ class Ranker:
         shortlist: how many of the best-scored candidates are refitted.
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
-        refit_budget: each refit may take this many times its rung's fit, in seconds or in its fit's evaluations at
-            the refit's own cost, whichever is longer (:mod:`torchpaml._budget`).
+        refit_budget: each refit may take this many times the evaluations of its rung's fit (:mod:`torchpaml._budget`).
         fit_budget: a rung's fit from the optimum of the refit that found its effect may take this many times that
-            refit; over it, the rung keeps the refit's parameters (``Ranking.fit_over_budget``).
+            refit's evaluations; over it, the rung keeps the refit's parameters (``Ranking.fit_over_budget``).
     """
 
     rule: SelectionRule = field(default_factory=SelectionRule)
@@ -114,8 +113,9 @@ class Ranker:
         base, fit, seconds, over = rung_fit(physics, train, self.max_nfev, initial_state, start_states, solver,
                                             refitted, self.fit_budget, end)
         baseline = score_model(base, fit, validation, rule, initial_state)
-        # the rung's fit in seconds, or redone at a refit's own cost per evaluation (the exact path's is far cheaper)
-        limits = Budget(base.display_name, self.refit_budget * seconds, self.refit_budget * fit.evaluations, end)
+        # the rung's fit in evaluations: its refit's and its own (the same count on every machine)
+        made = fit.evaluations + (0 if refitted is None or over is not None else refitted.refit.estimate.evaluations)
+        limits = Budget(base.display_name, evaluations=self.refit_budget * made, deadline=end)
         if not candidates:
             return Ranking(baseline, [], rule, skipped, initial_state, over, seconds)
         if solver is not None and fit.solver.stepping() is None:  # a rung on the exact path: effects step by solver

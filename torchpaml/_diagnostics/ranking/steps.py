@@ -95,14 +95,15 @@ def rung_fit(physics: AbstractPhysics, train: list[Record], max_nfev: int, initi
     """A copy of ``physics`` fitted on ``train`` as the rung's baseline, its fit, the rung's fit in seconds (with the
     refit it comes from), and the seconds after which the fit stopped over its budget (``None`` where it ended).
 
-    After a refit (``refitted``) the fit may take ``fit_budget`` times it, and over that the rung keeps the refit's
+    After a refit (``refitted``) the fit may take ``fit_budget`` times its evaluations, and over that the rung keeps the refit's
     parameters and estimate; the first rung's fit has the diagnosis' deadline, and over it the diagnosis cannot go
     on: a :class:`~torchpaml.ConfigurationError` says so."""
     base = copy.deepcopy(physics)
     label = f"fitting {base.display_name}"
     log.info("%s on %d samples", label, sum(len(r.t) for r in train))
     earlier = 0.0 if refitted is None else refitted.seconds
-    budget = Budget(label, None if refitted is None else fit_budget * earlier, deadline=deadline)
+    budget = Budget(label, evaluations=None if refitted is None else fit_budget * refitted.refit.estimate.evaluations,
+                    deadline=deadline)
     try:
         fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states,
                           solver=Auto(start=solver), budget=budget)
