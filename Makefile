@@ -31,7 +31,7 @@ paper: install
 	$(PYTHON) experiments/paper/reproduce.py --alpha 4 --alpha 10 --seeds 10 --out results/paper
 
 # pytest exits 5 when it collects no test: that is not a failure of the suite.
-# `make test`: the fast lane for every edit (no end-to-end runs). `make test-all`: the whole suite but the experiments on the measured data, as CI runs it;
+# `make test`: the fast lane for every edit (no end-to-end runs), as CI runs it. `make test-all`: the whole suite but the experiments on the measured data, before a release;
 # `make test-experiments`: those.
 # Both spread the tests over the machine's two cores (pytest-xdist, `-n 2`).
 test: install
