@@ -62,6 +62,8 @@ bench: install-fleet
 	$(PYTHON) benchmarks/bench_diagnosis.py
 	$(PYTHON) benchmarks/bench_fleet.py
 	$(PYTHON) benchmarks/bench_tracking.py
+	$(PYTHON) benchmarks/bench_fit_evaluation.py
+	$(PYTHON) benchmarks/bench_same_answer.py --out results/bench_same_answer.json
 	$(PYTHON) benchmarks/bench_worst_case.py --lengths 4001 --out results/bench_worst_case.json
 	$(PYTHON) benchmarks/bench_worst_case.py --lengths 60001 --rungs "oscillator + coulomb_friction" --discovery-samples 0 --out results/bench_worst_case.json
 	$(PYTHON) benchmarks/bench_worst_case.py --lengths --discovery-samples 0 --cases memory_rung pendulum two_output --out results/bench_worst_case.json

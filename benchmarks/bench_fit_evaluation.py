@@ -13,24 +13,15 @@ sweeps per column). Reported: µs per sample, and the evaluation's ratio to the 
 from __future__ import annotations
 
 import argparse
-import time
 
 import torch
+from bench_simulation import best  # the best of repeats, as the simulation benchmark times
 
 from torchpaml import RK4, CubicStiffness, Oscillator
 from torchpaml._signals import pseudorandom
 from torchpaml._simulate.compiled import sequential_states
 from torchpaml._simulate.compiled_jacobian import compiled_jacobian
 from torchpaml._simulate.sensitivity import raw_parameters, shooting_jacobian
-
-
-def best(work, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def main() -> None:
