@@ -92,7 +92,7 @@ def test_the_compiled_jacobian_is_the_engines_exact_derivative(case, hold, solve
     physics = _physics(case)
     t, u, x0 = _drive(physics)
     raw = raw_parameters(physics, physics.learnable_names())
-    compiled = jacobians.compiled_jacobian(physics, raw, t, u, x0, solver, hold, True)
+    compiled = jacobians.compiled_jacobian(physics, raw, t, u, x0, solver, hold, True, kinks=True)
     assert compiled is not None
     y, J = compiled
     cotangents = _projections(J.shape[1:3])
@@ -128,3 +128,14 @@ def test_records_of_unequal_length_with_their_initial_states_stack_in_their_bloc
         assert (block[:, len(names) + 2 * (1 - i):len(names) + 2 * (1 - i) + 2] == 0).all()
         rows += len(record.t)
     assert rows == len(residual)
+
+
+def test_a_physics_with_a_kink_is_differentiated_by_the_engine_in_fits():
+    """Hysteresis has |v| and |z|: its exact slope flips at once where they cross zero, so a fit takes the engine's
+    central differences (the compiled Jacobian above is still exact, on demand)."""
+    physics, smooth = _physics("hysteresis"), _physics("hardening spring")
+    t, u, x0 = _drive(physics)
+    for model, kinked in ((physics, True), (smooth, False)):
+        raw = raw_parameters(model, model.learnable_names())
+        compiled = jacobians.compiled_jacobian(model, raw, t, u, model.initial_state(1), RK4(substeps=1), "foh", True)
+        assert (compiled is None) == kinked

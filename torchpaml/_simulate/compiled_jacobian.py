@@ -19,9 +19,11 @@ torch.
 **Cost.** One pass gives the outputs and all $p + n$ columns: per stage, one evaluation of $f$ and of its
 derivatives and $n^2$ multiply-adds per column.
 
-**Where it is used.** :meth:`~torchpaml.FixedStep.jacobian` of RK4 (every fit's and probe's Jacobian at any record
-length), where the physics compiles (:func:`~torchpaml._simulate.compiled.compiled_form`) and each parameter named is
-one scalar; otherwise ``None``, and the shooting engine's central differences are the Jacobian.
+**Where it is used.** :meth:`~torchpaml.FixedStep.jacobian` of RK4 and TR-BDF2 (every fit's and probe's Jacobian
+at any record length), where the physics compiles (:func:`~torchpaml._simulate.compiled.compiled_form`), has no kink
+(:class:`_Sensitivities`) and each parameter named is one scalar; otherwise ``None``, and the shooting engine's
+central differences are the Jacobian. TR-BDF2's states (:func:`implicit_states`) are compiled for every physics that
+compiles.
 """
 
 from __future__ import annotations
@@ -338,10 +340,24 @@ def _source(form: _Compiled, n: int, m: int) -> str:
                          "double *hp_", outputs) + _LOOP)
 
 
+def _kinked(form: _Compiled) -> bool:
+    """Whether the closed form has a kink or a jump (``Max``, ``Min``, ``Abs``, ``sign``, a ``where``): its slopes
+    change at once where a state crosses it."""
+    kinks = (sympy.Max, sympy.Min, sympy.Abs, sympy.sign, sympy.Piecewise, sympy.Heaviside)
+    return any(expression.has(*kinks) for expression in (*form.rates, *form.output))
+
+
 class _Sensitivities:
-    """One physics' compiled ``rk4_rows`` and ``trbdf2_rows`` (module docstring)."""
+    """One physics' compiled ``rk4_rows`` and ``trbdf2_rows`` (module docstring).
+
+    ``kinked``: the physics has a kink (:func:`_kinked`). Its exact Jacobian is the slope on one side of it, which
+    vanishes on a clamped side: a fit's trust region, scaled by the Jacobian's columns, then steps without limit
+    in that direction (measured on the cascaded tanks, whose levels are clamped at zero: every refit of the third
+    rung ran to infinite rates). Fits of such physics take the engine's central differences, which see the kink
+    across their step; the compiled TR-BDF2 states still serve them."""
 
     def __init__(self, form: _Compiled, n: int, m: int):
+        self.kinked = _kinked(form)
         library = loaded(cached_library(_source(form, n, m), "sensitivities", "the compiled Jacobian"))
         self._runs = {name: getattr(library, f"{name}_rows") for name in ("rk4", "trbdf2")}
         for run in self._runs.values():
@@ -398,16 +414,16 @@ def _sensitivities(physics: Dynamics, solver: Method) -> tuple[_Compiled, _Sensi
 
 
 def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.Tensor, u: torch.Tensor,
-                      x0: torch.Tensor, solver: Method, hold: str, initial_state: bool
+                      x0: torch.Tensor, solver: Method, hold: str, initial_state: bool, kinks: bool = False
                       ) -> tuple[torch.Tensor, torch.Tensor] | None:
     """The output (batch, time, n_output) and its Jacobian (batch, time, n_output, p [+ n_state]) in the raw
     parameters ``raw`` (and ``x0`` (batch, n_state) with ``initial_state``) by ``solver``'s method (RK4, TR-BDF2) at
     its substeps in C (module docstring); ``None`` where it is left to the shooting engine: another method, a
-    physics that does not compile (:func:`~torchpaml._simulate.compiled.compiled_form`), a parameter that is not one
-    scalar, a TR-BDF2 stage whose Newton fails, or an output that does not stay finite (the engine then says
-    where)."""
+    physics that does not compile (:func:`~torchpaml._simulate.compiled.compiled_form`), a physics with a kink unless
+    ``kinks`` (:class:`_Sensitivities`), a parameter that is not one scalar, a TR-BDF2 stage whose Newton fails, or an
+    output that does not stay finite (the engine then says where)."""
     compiled = _sensitivities(physics, solver) if len(t) > 1 else None
-    if compiled is None:
+    if compiled is None or (compiled[1].kinked and not kinks):
         return None
     form, run = compiled
     columns = _columns(form, raw, physics.state_dim, initial_state)
