@@ -136,6 +136,7 @@ def test_what_is_not_compiled_is_left_to_the_engine(case, monkeypatch):
         assert compiled.sequential_states(physics, t, u, physics.initial_state(2), solver, "foh") is None
 
 
+@pytest.mark.slow  # 15 to 35 s: the slow lane (make test-all)
 def test_forward_mode_and_functional_call_leave_the_module_compiled(monkeypatch):
     monkeypatch.setattr(compiled, "MIN_STEPS", 1000)
     physics = _hard()

@@ -95,6 +95,7 @@ def test_a_cache_that_cannot_be_written_falls_back(monkeypatch, tmp_path):
     _assert_same_fit(_fit_warns(record, "cannot be created"), engine)
 
 
+@pytest.mark.slow  # 15 to 35 s: the slow lane (make test-all)
 def test_a_library_that_does_not_load_falls_back(monkeypatch, tmp_path):
     record = _record()
     engine = _engine_fit(record, monkeypatch)

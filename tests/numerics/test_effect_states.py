@@ -77,6 +77,7 @@ def test_gradients_match_central_differences(name, record):
         assert float(raw.grad) == pytest.approx((up - down) / (2 * step), rel=1e-5, abs=1e-8), n
 
 
+@pytest.mark.slow  # 15 to 35 s: the slow lane (make test-all)
 def test_the_step_check_resolves_a_fast_effect_state():
     """A lag of half a sample interval on a noiseless record: at one RK4 step per sample the output is 6e-5 off
     (measured; the oscillator smooths the lag state's own error), far above what the noiseless record leaves, so
