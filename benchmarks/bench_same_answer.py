@@ -29,10 +29,10 @@ import warnings
 from pathlib import Path
 
 import torch
-from threadpoolctl import threadpool_limits
 
 from torchpaml import (CompiledPathWarning, CoulombFriction, CubicStiffness, Oscillator, QuadraticDamping, Record,
                        Simulated, default_effects, diagnose)
+from torchpaml._fit.one_thread import one_thread
 from torchpaml._simulate import compiled
 
 CASES = {"demo": CoulombFriction(0.5), "cubic_stiffness": CubicStiffness(3.0), "quadratic_damping": QuadraticDamping(0.8)}
@@ -55,17 +55,6 @@ def perturbed(record: Record, seed: int) -> Record:
 
     return Record(record.t, record.u * (1 + 1e-12 * sign(record.u.shape)), record.y * (1 + 1e-12 * sign(record.y.shape)),
                   record.name, hold=record.hold)
-
-
-@contextlib.contextmanager
-def one_thread():
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        with threadpool_limits(limits=1):
-            yield
-    finally:
-        torch.set_num_threads(threads)
 
 
 @contextlib.contextmanager
