@@ -172,7 +172,7 @@ class Erf(Oscillator):
 
 
 @pytest.mark.parametrize("model, message", [
-    (FittedModel(Erf(), RK4(substeps=1)), "does not know the operation aten.special_erf.default"),
+    (FittedModel(Erf(), RK4(substeps=1)), "does not know the operation aten.erf.default"),
     (FittedModel(Oscillator(), RK4(), ChebyshevHammerstein.for_sampling(2.0, 0.05), step=0.05),
      r"cannot export the residual of a hybrid \(hybrid.pt\) as code"),
     (FittedModel(Oscillator(), TRBDF2(substeps=1)), "simulated by the implicit TRBDF2"),

@@ -1,9 +1,8 @@
 r"""The closed form of a physics: its rates $f(t, x, u)$ and its output $h(x, u)$ as sympy expressions.
 
-``torch.export`` traces ``physics.derivative`` and ``physics.output`` (one row) into a graph of ATen operations; each
-operation is then applied to numpy arrays of sympy expressions (:mod:`~torchpaml._symbolic.aten`), the inputs being
-the symbols $t$, $x_i$ (the physics' state names) and $u_j$ (the input channels' names), the parameters their
-fitted values. Whatever the physics is written with (a user's class, library effects with their own states, a
+``physics.derivative`` and ``physics.output`` run once on one row, and each ATen operation they reach is also
+applied to numpy arrays of sympy expressions (:mod:`~torchpaml._symbolic.trace`), the inputs being the symbols
+$t$, $x_i$ (the physics' state names) and $u_j$ (the input channels' names), the parameters their fitted values. Whatever the physics is written with (a user's class, library effects with their own states, a
 discovered closed form), the result is one expression per rate and per output. An operation the table does not
 know is refused in one line naming it (:class:`~torchpaml.ConfigurationError`).
 
@@ -20,8 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from torchpaml._symbolic.aten import interpret
-from torchpaml._symbolic.trace import traced
+from torchpaml._symbolic.trace import symbolic_maps
 from torchpaml._physics.base import AbstractPhysics
 
 __all__ = ["ClosedForm", "closed_form", "identifier"]
@@ -72,12 +70,11 @@ def closed_form(physics: AbstractPhysics, inputs: tuple[str, ...] = (), outputs:
     """The closed form of ``physics`` (module docstring); ``inputs`` and ``outputs`` name the channels (default
     ``u``/``y``, or the physics' own ``input_names``/``output_names``)."""
     n, m = physics.state_dim, physics.input_dim
-    program = traced(physics)
     t = sympy.Symbol("t", real=True)
     x = [sympy.Symbol(name, real=True) for name in _names(tuple(physics.state_names), n, "x")]
     u = [sympy.Symbol(name, real=True) for name in _names(inputs or tuple(physics.input_names), m, "u")]
     values = {"t": np.array([t], dtype=object), "x": np.array([x], dtype=object), "u": np.array([u], dtype=object)}
-    rates, output = interpret(program, values, physics.display_name)
+    rates, output = symbolic_maps(physics, values)
     output_names = _names(outputs or tuple(physics.output_names), physics.output_dim, "y")
     return ClosedForm(t, tuple(x), tuple(u), tuple(output_names), tuple(rates.reshape(-1)),
                       tuple(output.reshape(-1)))

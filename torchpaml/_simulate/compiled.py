@@ -5,9 +5,8 @@ sequential step, and Newton needs several sweeps where it starts far from the so
 from its linear base: a whole second on 65 536 samples). Sequential RK4 in C costs about 0.1 µs per step of a
 2-state model and needs no Newton at all.
 
-**How.** The physics is traced once (:func:`~torchpaml._symbolic.trace.traced`) and its rates are interpreted as
-sympy expressions (:func:`~torchpaml._symbolic.aten.interpret`) in the symbols ``t_``, ``x_[i]``, ``u_[j]`` and
-``p_[k]``: every element of every parameter and buffer is a symbol, read from the live module at each call, so a
+**How.** The physics is run once on sympy twins of its tensors (:func:`~torchpaml._symbolic.trace.symbolic_maps`),
+which gives its rates as sympy expressions in the symbols ``t_``, ``x_[i]``, ``u_[j]`` and ``p_[k]``: every element of every parameter and buffer is a symbol, read from the live module at each call, so a
 fit's new parameters need no new compile. The expressions are printed as C after common-subexpression
 elimination, and RK4 runs sample after sample for each row: the stage times, the inputs of the hold and the step
 coefficients of :func:`~torchpaml._simulate.steps.rk4_sweep`, so the two agree to rounding (measured: 5e-15
@@ -21,9 +20,10 @@ again.
 gradient is recorded, and otherwise starts Newton from them: they are the solution, so its first sweep converges
 and gives the sensitivities that gradients need. Where the physics cannot be compiled, :func:`sequential_states`
 returns ``None`` and the engine goes on as before: a method other than RK4 (its ``sweep`` is the method), a physics
-that ``torch.export`` or the operation table cannot take, more than :data:`MAX_PARAMETERS` parameter elements (a
+that the operation table cannot take (:mod:`~torchpaml._symbolic.trace`), a structure run by ``functional_call``
+(plain tensors in the parameters' place: the engine's differences), more than :data:`MAX_PARAMETERS` parameter elements (a
 neural force: its closed form is no faster than its tensors), no C compiler, fewer than :data:`MIN_STEPS` steps
-(tracing and compiling cost about 0.2 s per model structure), states that do not stay finite (the engine then
+(tracing and compiling a new structure cost about 0.2 s), states that do not stay finite (the engine then
 reports where the simulation blew up), or a ``torch.func`` transform running (``jvp``, ``vmap``).
 """
 
@@ -43,9 +43,8 @@ from torch import nn
 from torchpaml._errors import CompiledPathWarning, ConfigurationError
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.method import Method
-from torchpaml._symbolic.aten import interpret
 from torchpaml._symbolic.compiler import UnbuildableError, cached_library, compiler, loaded
-from torchpaml._symbolic.trace import traced
+from torchpaml._symbolic.trace import symbolic_maps
 
 __all__ = ["MAX_PARAMETERS", "MIN_STEPS", "compiled_form", "sequential_states", "warn_once"]
 
@@ -92,30 +91,24 @@ int simulate_rows(int rows, int samples, int substeps, int foh, const double *t,
 
 class _Compiled:
     """One physics' closed form in the parameter symbols ``p_[k]`` (:attr:`rates`, :attr:`output`), its compiled
-    ``simulate_rows``, and where its parameter array is read from (:attr:`targets`: each tensor's ``torch.export``
-    target, its first symbol and its size, in the array's order)."""
+    ``simulate_rows``, and where its parameter array is read from (:attr:`targets`: each parameter's or buffer's
+    name, its first symbol and its size, in the array's order: ``named_parameters`` then ``named_buffers``)."""
 
     def __init__(self, physics: Dynamics):
-        program = traced(physics)
         tensors, self._sources, self.targets, count = {}, [], [], 0
-        named = {**dict(physics.named_parameters()), **dict(physics.named_buffers())}
-        for spec in program.graph_signature.input_specs:
-            if spec.target is None or spec.target in program.constants:
-                continue
-            name = spec.target.removeprefix("physics.")
-            size = named[name].numel()
-            symbols = [sympy.Symbol(f"p_[{count + k}]", real=True) for k in range(size)]
-            tensors[spec.target] = np.array(symbols, dtype=object).reshape(tuple(named[name].shape))
+        for name, tensor in (*physics.named_parameters(), *physics.named_buffers()):
+            symbols = [sympy.Symbol(f"p_[{count + k}]", real=True) for k in range(tensor.numel())]
+            tensors[name] = np.array(symbols, dtype=object).reshape(tuple(tensor.shape))
             self._sources.append(name.rpartition(".")[::2])  # (module path, attribute)
-            self.targets.append((name, count, size))
-            count += size
+            self.targets.append((name, count, tensor.numel()))
+            count += tensor.numel()
         n, m = physics.state_dim, physics.input_dim
         self.symbols = {"t": sympy.Symbol("t_", real=True), "x": [sympy.Symbol(f"x_[{i}]", real=True) for i in range(n)],
                         "u": [sympy.Symbol(f"u_[{j}]", real=True) for j in range(m)],
                         "p": [sympy.Symbol(f"p_[{k}]", real=True) for k in range(count)]}
         values = {"t": np.array([self.symbols["t"]], dtype=object), "x": np.array([self.symbols["x"]], dtype=object),
                   "u": np.array([self.symbols["u"]], dtype=object)}
-        rates, output = interpret(program, values, physics.display_name, tensors)
+        rates, output = symbolic_maps(physics, values, tensors)
         self.rates, self.output = list(rates.reshape(-1)), list(output.reshape(-1))
         self.name = physics.display_name
         library = cached_library(_source(self.rates, n, m), "simulate", "the compiled simulation")
@@ -172,9 +165,9 @@ def _source(rates: list, n: int, m: int) -> str:
 def _signature(physics: Dynamics) -> tuple:
     """What a compiled form depends on besides the parameters' values: each module's class and plain attributes, its
     tensors' names, types and shapes, and the values of its tensor attributes that are neither parameters nor buffers
-    (``torch.export`` prints those into the closed form as numbers: a changed one needs a new compile).
-    ``functional_call`` puts plain tensors in the parameters' place, which ``torch.export`` refuses: that structure
-    is then left to the engine, and the module's own is still compiled."""
+    (the closed form holds those as numbers: a changed one needs a new compile). ``functional_call`` puts plain
+    tensors in the parameters' place: that structure is another signature, left to the engine
+    (:func:`_reparametrized`), and the module's own is still compiled."""
     plain = (bool, int, float, str, tuple, type(None))
     return tuple((name, type(module).__module__, type(module).__qualname__,
                   tuple(sorted((k, repr(v)) for k, v in vars(module).items()
@@ -193,6 +186,14 @@ _FORMS: OrderedDict = OrderedDict()
 KEPT_FORMS = 512
 
 
+def _reparametrized(physics: Dynamics) -> bool:
+    """Whether ``functional_call`` runs ``physics`` (a plain tensor in a parameter's place): the central differences
+    of a Jacobian the engine computes (:func:`~torchpaml._simulate.sensitivity.difference_jacobian`), which stay on
+    the engine's arithmetic."""
+    return any(v is not None and not isinstance(v, nn.Parameter)
+               for module in physics.modules() for v in module._parameters.values())
+
+
 def _compiled(physics: Dynamics) -> _Compiled | None:
     """The compiled form of ``physics`` (made once per structure), ``None`` where it cannot be compiled: a physics the
     tracer or the operation table cannot take, or too many parameters, is logged once per structure (the engine is
@@ -204,6 +205,8 @@ def _compiled(physics: Dynamics) -> _Compiled | None:
     form = None
     if compiler() is None:
         warn_once("no C compiler (cc, gcc) is on PATH; install one")
+    elif _reparametrized(physics):
+        log.info("%s is simulated by the torch engine: run by functional_call", physics.display_name)
     elif sum(p.numel() for p in physics.parameters()) > MAX_PARAMETERS:
         log.info("%s is simulated by the torch engine: more than %d parameter elements", physics.display_name,
                  MAX_PARAMETERS)

@@ -1,8 +1,8 @@
-"""ATen operations on numpy arrays of sympy expressions: how a traced physics becomes its closed form.
+"""ATen operations on numpy arrays of sympy expressions: how a physics becomes its closed form.
 
-:func:`interpret` walks a ``torch.export`` program node by node. Tensors are numpy object arrays of sympy
-expressions (the parameters and constants as numbers, the inputs as symbols), and each operation of :data:`OPS`
-does to them what ATen does to tensors, element by element and with numpy's broadcasting. The table holds the
+:func:`~torchpaml._symbolic.trace.symbolic_maps` runs a physics and gives each tensor a twin: a numpy object array of
+sympy expressions (the parameters and constants as numbers or symbols, the inputs as symbols). Each operation of
+:data:`OPS` does to the twins what ATen does to tensors, element by element and with numpy's broadcasting. The table holds the
 operations that physics is written with: arithmetic, powers, the elementary functions, comparisons and ``where``,
 minimum and maximum, and the shape operations (select, slice, stack, cat, unbind, reshape, ...). An operation not
 in it is refused in one line naming it.
@@ -17,14 +17,12 @@ import numpy as np
 import sympy
 import torch
 
-from torchpaml._errors import ConfigurationError
-
-__all__ = ["OPS", "interpret"]
+__all__ = ["OPS", "as_array"]
 
 aten = torch.ops.aten
 
 
-def _array(value) -> np.ndarray:
+def as_array(value) -> np.ndarray:
     """A tensor, a number or an array as a numpy object array of sympy expressions."""
     if isinstance(value, np.ndarray):
         return value
@@ -32,21 +30,21 @@ def _array(value) -> np.ndarray:
         numbers = value.detach().to(torch.float64).numpy()
         return np.vectorize(lambda v: sympy.Float(repr(float(v))), otypes=[object])(numbers) if numbers.size else \
             np.empty(numbers.shape, dtype=object)
-    return np.array(sympy.sympify(value), dtype=object)
+    return np.array(sympy.sympify(value, strict=True), dtype=object)
 
 
 def _elementwise(function: Callable) -> Callable:
     vector = np.vectorize(function, otypes=[object])
-    return lambda *args, **kwargs: vector(*[_array(a) for a in args])
+    return lambda *args, **kwargs: vector(*[as_array(a) for a in args])
 
 
 def _binary(function: Callable) -> Callable:
-    return lambda a, b, **kwargs: np.frompyfunc(function, 2, 1)(_array(a), _array(b))
+    return lambda a, b, **kwargs: np.frompyfunc(function, 2, 1)(as_array(a), as_array(b))
 
 
 def _scaled(function: Callable) -> Callable:
     """ATen's ``add``/``sub`` with their ``alpha``."""
-    return lambda a, b, alpha=1: np.frompyfunc(function, 2, 1)(_array(a), _array(b) * alpha)
+    return lambda a, b, alpha=1: np.frompyfunc(function, 2, 1)(as_array(a), as_array(b) * alpha)
 
 
 def _slice(a, dim=0, start=None, end=None, step=1):
@@ -61,7 +59,7 @@ def _sign(v):
 
 def _where(condition, a, b):
     return np.frompyfunc(lambda c, x, y: sympy.Piecewise((x, c), (y, True)), 3, 1)(
-        _array(condition), _array(a), _array(b))
+        as_array(condition), as_array(a), as_array(b))
 
 
 def _reduce(function: Callable) -> Callable:
@@ -77,11 +75,11 @@ def _mean(a, axis, keepdims):
 
 
 def _full(size, value, **kwargs):
-    return np.full(tuple(size), sympy.sympify(value), dtype=object)
+    return np.full(tuple(size), sympy.sympify(value, strict=True), dtype=object)
 
 
 def _full_like(a, value, **kwargs):
-    return np.full(a.shape, sympy.sympify(value), dtype=object)
+    return np.full(a.shape, sympy.sympify(value, strict=True), dtype=object)
 
 
 _SAME = lambda a, *args, **kwargs: a  # noqa: E731  operations that leave the values as they are
@@ -90,7 +88,7 @@ _SAME = lambda a, *args, **kwargs: a  # noqa: E731  operations that leave the va
 OPS: dict = {
     aten.add.Tensor: _scaled(operator.add), aten.sub.Tensor: _scaled(operator.sub),
     aten.add.Scalar: _scaled(operator.add), aten.sub.Scalar: _scaled(operator.sub),
-    aten.rsub.Scalar: lambda a, b, alpha=1: _array(b) - _array(a) * alpha,
+    aten.rsub.Scalar: lambda a, b, alpha=1: as_array(b) - as_array(a) * alpha,
     aten.mul.Tensor: _binary(operator.mul), aten.mul.Scalar: _binary(operator.mul),
     aten.div.Tensor: _binary(operator.truediv), aten.div.Scalar: _binary(operator.truediv),
     aten.neg.default: lambda a: -a, aten.reciprocal.default: _elementwise(lambda v: 1 / v),
@@ -122,8 +120,8 @@ OPS: dict = {
     aten.where.self: _where, aten.where.ScalarOther: _where, aten.where.ScalarSelf: _where, aten.where.Scalar: _where,
     aten.select.int: lambda a, dim, index: np.take(a, index, axis=dim),
     aten.slice.Tensor: _slice,
-    aten.stack.default: lambda items, dim=0: np.stack([_array(i) for i in items], axis=dim),
-    aten.cat.default: lambda items, dim=0: np.concatenate([_array(i) for i in items], axis=dim),
+    aten.stack.default: lambda items, dim=0: np.stack([as_array(i) for i in items], axis=dim),
+    aten.cat.default: lambda items, dim=0: np.concatenate([as_array(i) for i in items], axis=dim),
     aten.unbind.int: lambda a, dim=0: tuple(np.moveaxis(a, dim, 0)),
     aten.unsqueeze.default: lambda a, dim: np.expand_dims(a, dim % (a.ndim + 1)),
     aten.squeeze.dim: lambda a, dim: np.squeeze(a, dim) if a.shape[dim] == 1 else a,
@@ -144,48 +142,8 @@ OPS: dict = {
     aten.full.default: _full, aten.full_like.default: _full_like,
     aten.zeros.default: lambda size, **kw: _full(size, 0), aten.ones.default: lambda size, **kw: _full(size, 1),
     aten.zeros_like.default: lambda a, **kw: _full_like(a, 0), aten.ones_like.default: lambda a, **kw: _full_like(a, 1),
-    aten.scalar_tensor.default: lambda value, **kw: np.array(sympy.sympify(value), dtype=object),
+    aten.scalar_tensor.default: lambda value, **kw: np.array(sympy.sympify(value, strict=True), dtype=object),
     aten.alias.default: _SAME, aten.clone.default: _SAME, aten.detach.default: _SAME,
     aten.lift_fresh_copy.default: _SAME, aten._to_copy.default: _SAME, aten.to.dtype: _SAME,
-    aten.contiguous.default: _SAME, operator.getitem: lambda a, i: a[i],
+    aten.contiguous.default: _SAME,
 }
-
-
-def _argument(value, env: dict):
-    if isinstance(value, torch.fx.Node):
-        return env[value.name]
-    if isinstance(value, (list, tuple)):
-        return type(value)(_argument(v, env) for v in value)
-    return value
-
-
-def _inputs(program, values: dict[str, np.ndarray], tensors: dict[str, np.ndarray] | None) -> dict:
-    """The placeholders' values: parameters, buffers and constants as numbers (or as ``tensors`` gives them, by
-    target name), the user's inputs ``values`` in order (``t``, ``x``, ``u``)."""
-    env, users = {}, iter(values.values())
-    tensors = {**program.state_dict, **program.constants, **(tensors or {})}
-    for spec in program.graph_signature.input_specs:
-        env[spec.arg.name] = _array(tensors[spec.target]) if spec.target is not None else next(users)
-    return env
-
-
-def interpret(program, values: dict[str, np.ndarray], owner: str,
-              tensors: dict[str, np.ndarray] | None = None) -> tuple:
-    """The outputs of ``program`` (a ``torch.export`` program) on ``values``, as object arrays (module docstring);
-    ``tensors`` replaces the numbers of the parameters and buffers it names (by target) with expressions, e.g.
-    symbols that a compiled function reads at run time."""
-    env = _inputs(program, values, tensors)
-    for node in program.graph.nodes:
-        if node.op == "call_function":
-            action = OPS.get(node.target)
-            if action is None:
-                raise ConfigurationError(f"cannot export {owner}: the exporter does not know the operation "
-                                         f"{node.target}; write the physics with the operations listed in "
-                                         "torchpaml._symbolic.aten.OPS")
-            args = [_argument(a, env) for a in node.args]
-            kwargs = {k: _argument(v, env) for k, v in node.kwargs.items()
-                      if k not in ("dtype", "layout", "device", "pin_memory", "memory_format", "non_blocking")}
-            env[node.name] = action(*args, **kwargs)
-        elif node.op == "output":
-            return tuple(_argument(a, env) for a in node.args[0])
-    raise ConfigurationError(f"cannot export {owner}: its traced program has no output")
