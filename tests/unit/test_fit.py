@@ -25,7 +25,7 @@ from torchpaml import (
     sine,
 )
 from torchpaml._certificates import draw_chebyshev
-from torchpaml._fit.residual_fit import RIDGE, project
+from torchpaml._fit.residual_fit import RIDGE, _ProjectedFit, project, projected_fit
 
 
 def test_bounded_fit_recovers_zeta(grid):
@@ -131,6 +131,54 @@ def test_the_projection_is_the_ridge_least_squares_of_numpy_and_its_gradient_is_
     assert np.allclose(coefficients.reshape(-1).numpy() * scale, oracle, rtol=1e-6, atol=1e-9)
     small = regressors[:, :40].clone().requires_grad_(True)
     assert torch.autograd.gradcheck(lambda r: project(r, target[:, :40])[1], (small,), eps=1e-6, atol=1e-5)
+
+
+@pytest.mark.parametrize("outputs", [1, 2])
+def test_the_residuals_response_is_its_regressors_times_its_coefficients(outputs):
+    """:meth:`ChebyshevHammerstein.response` (the observable realisation, one recursion per feature) against the
+    regressors (the controllable one, a state per column) times the coefficients, at random poles and
+    coefficients: the same transfer functions, to 1e-10 of the response's peak (two exact discretisations, rounded
+    along two paths)."""
+    generator = torch.Generator().manual_seed(3)
+    t = torch.arange(1500, dtype=torch.float64) * 0.05
+    u = 2 * torch.rand(2, 1500, 1, generator=generator, dtype=torch.float64) - 1
+    residual = ChebyshevHammerstein.for_sampling(1.0, 0.05, outputs=outputs)
+    with torch.no_grad():
+        for parameter in residual.parameters():
+            parameter.add_(0.3 * torch.randn(parameter.shape, generator=generator, dtype=torch.float64))
+        equation = "btkj,kj->bt" if outputs == 1 else "btkj,okj->bto"
+        expected = torch.einsum(equation, residual.regressors(t, u), residual.coefficients())
+        expected = expected[..., None] if outputs == 1 else expected
+        got = residual.response(t, u, residual.coefficients())
+    assert float((got - expected).abs().max()) < 1e-10 * float(expected.abs().max())
+
+
+@pytest.mark.parametrize("outputs", [1, 2])
+def test_the_pole_searchs_gradient_is_the_projections_derivative(outputs):
+    """The projection's derivative in the poles (Golub-Pereyra, from two responses) against reverse mode through
+    the whole projection (Cholesky solve included), to 1e-8 relative, and against central differences
+    (``gradcheck``), on a target the residual does not fit exactly and on two records of unequal length."""
+    generator = torch.Generator().manual_seed(4)
+    t = torch.arange(800, dtype=torch.float64) * 0.05
+    u = 2 * torch.rand(1, 800, 1, generator=generator, dtype=torch.float64) - 1
+    target = torch.cat([u ** 3, 0.3 * torch.roll(u, 7, dims=1) ** 2][:outputs], dim=-1)
+    target = target + 0.05 * torch.randn(target.shape, generator=generator, dtype=torch.float64)
+    residual = ChebyshevHammerstein.for_sampling(1.0, 0.05, outputs=outputs)
+    poles = residual.pole_parameters()
+    cotangent = torch.randn(target.shape, generator=generator, dtype=torch.float64)
+
+    def derivative(fitted) -> torch.Tensor:
+        return torch.cat([g.reshape(-1) for g in torch.autograd.grad((fitted * cotangent).sum(), poles)])
+
+    exact = derivative(projected_fit(residual, t, u, target))
+    regressors = residual.regressors(t, u)
+    reverse = derivative(torch.stack([project(regressors, target[..., o])[1] for o in range(outputs)], dim=-1))
+    assert float((exact - reverse).norm()) < 1e-8 * float(reverse.norm())
+
+    records_t, records_u = [t[:300], t[:500]], [u[:, :300], u[:, 300:]]
+    start = tuple(p.detach().clone().requires_grad_(True) for p in poles)
+    assert torch.autograd.gradcheck(lambda *values: _ProjectedFit.apply(residual, records_t, records_u, target, *values),
+                                    start, eps=1e-6, atol=1e-6, rtol=1e-5, fast_mode=True)
 
 
 def test_mlp_residual_fit_reduces_the_error(grid):

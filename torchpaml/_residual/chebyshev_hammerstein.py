@@ -220,10 +220,23 @@ class ChebyshevHammerstein(AbstractResidual):
             self.numerator.copy_(coefficients[..., : self.order])
             self.direct.copy_(coefficients[..., self.order])
 
+    def response(self, t: torch.Tensor, u: torch.Tensor, coefficients: torch.Tensor) -> torch.Tensor:
+        r"""$r$ for the linear parameters ``coefficients`` (as :meth:`coefficients` lays them out), (batch, time,
+        outputs): per output, the multi-input filter $\sum_k R_k(s)[T_{2k+1}]$ in observable canonical form
+        ($A^\top$, the numerators as its input matrix, $e_m^\top$, the direct terms), the same transfer functions
+        as the regressors' realisation with one recursion per feature instead of $m$. Differentiable in the poles
+        and in ``coefficients``."""
+        h = uniform_step(t)
+        phi = self.features(u)
+        m = self.order
+        A = torch.cat([torch.eye(m, dtype=torch.float64)[1:], -self.denominator().flip(0)[:m][None]])
+        C = torch.zeros(1, m, dtype=torch.float64)
+        C[0, -1] = 1.0
+        per_output = coefficients[None] if self.outputs == 1 else coefficients
+        return torch.cat([simulate_lti(A.T, c[:, :m].T, C, c[None, :, m], h, phi) for c in per_output], dim=-1)
+
     def forward(self, t: torch.Tensor, u: torch.Tensor, y_physics: torch.Tensor | None = None) -> torch.Tensor:
-        if self.outputs == 1:
-            return torch.einsum("btkj,kj->bt", self.regressors(t, u), self.coefficients())[..., None]
-        return torch.einsum("btkj,okj->bto", self.regressors(t, u), self.coefficients())
+        return self.response(t, u, self.coefficients())
 
 
 def _poly_mul(p: torch.Tensor, q: torch.Tensor) -> torch.Tensor:
