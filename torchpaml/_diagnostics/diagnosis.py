@@ -15,19 +15,23 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    close the gap and says so; on physics whose training residual is noise by effect size (its
    cross-correlation with the input below :data:`NOISE_CORRELATION` at all but :data:`WHITE_SHARE`
    of the lags, coloured or not, whatever the record's length, and the orthogonal residual unable to
-   reduce it: :data:`~torchpaml._diagnostics.analysis.adequacy.NOISE_RATIO`) it says that the physics is
+   reduce it: :data:`~torchpaml._diagnostics.analysis.adequacy.NOISE_RATIO`) and whose validation mismatch is within
+   :data:`~torchpaml._diagnostics.analysis.adequacy.FLOOR_FACTOR` times the noise floor read from the validation
+   records (:mod:`~torchpaml._diagnostics.analysis.noise_floor`), it says that the physics is
    complete at that noise level. The two residual fits are independent and run in two threads where torch has two
    or more (their filtering, in scipy and torch, releases the GIL: 36 s -> 27 s at 100 000 samples, the same
    numbers), in one where it has one (a fleet's worker, whose share of the cores is one);
-4. with ``discovery=Discoverer()``, the **discovery** of a force or rate outside the library on the ladder's
+4. the **probes of where the mismatch points** (:class:`~torchpaml.Prober`), where the last rung is not complete at
+   the noise level: one small, interpretable extension refitted at each place the missing physics may sit (the
+   actuator's and the sensor's dynamics, one more mode, the static maps of the output and of the input, a force, a
+   latent state, the initial state), each scored by its validation gain, the best named in the verdict. They are
+   the cheap questions, so they run first, within the budget;
+5. with ``discovery=Discoverer()``, the **discovery** of a force or rate outside the library on the ladder's
    last rung (:func:`~torchpaml.discover_missing_force`: a neural rate in the ODE, then its
    closed form, ranked against the library's best remaining effect), so that it can find a second
    effect on top of a first. It is asked for, not automatic: it trains a
-   network through the simulator, so its cost grows with the record's length;
-5. the **probes of where the mismatch points** (:class:`~torchpaml.Prober`), where the last rung is not complete at
-   the noise level: one small, interpretable extension refitted at each place the missing physics may sit (the
-   actuator's and the sensor's dynamics, one more mode, the static maps of the output and of the input, a force, a
-   latent state, the initial state), each scored by its validation gain, the best named in the verdict.
+   network through the simulator, so its cost grows with the record's length; it gets what is left of the budget
+   (a progress line says how much), and its closed form then joins the probes' force place.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ import torch
 from torchpaml._data import Record
 from torchpaml._diagnostics.analysis.adequacy import Adequacy, assess_adequacy
 from torchpaml._diagnostics.analysis.channels import ChannelScore, channel_scores, shows_most
+from torchpaml._diagnostics.analysis.noise_floor import noise_floor
 from torchpaml._diagnostics.discovery.discoverer import Discoverer
 from torchpaml._diagnostics.discovery.result import Discovery
 from torchpaml._diagnostics.mismatch.prober import Prober
@@ -307,7 +312,7 @@ def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alp
         hybrid_validation = mismatch(joined_in_time(v_y), joined_in_time(v_physics) + per_record(residual, v_t, v_u))
     noise, linear_share = _noise_like(train[0], joined_in_time(y_physics)[0, :len(train[0].t)])
     adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
-                               residual_white=noise, linear_share=linear_share)
+                               residual_white=noise, linear_share=linear_share, noise_floor=noise_floor(validation))
     return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy,
                        residual)
 
@@ -375,11 +380,17 @@ def diagnose(
     with ThreadPoolExecutor(min(2, torch.get_num_threads())) as pool:  # one where torch has one (a fleet's worker)
         hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha, deadline),
                                 _distinct(base, ladder.final)))
-    found = None if discovery is None else discovery.discover(ladder.rankings[-1], train, validation, deadline,
-                                                              complete=hybrids[-1].adequacy.complete)
+    complete = hybrids[-1].adequacy.complete
     probes = None if prober is None else prober.probe(ladder.rankings[-1], train, validation, ranker=ranker,
-                                                      deadline=deadline, discovery=found,
-                                                      complete=hybrids[-1].adequacy.complete, first=base)
+                                                      deadline=deadline, discovering=discovery is not None,
+                                                      complete=complete, first=base)
+    found = None
+    if discovery is not None:
+        if deadline is not None:
+            log.info("discovery: %.0f s of the diagnosis' budget left", max(0.0, deadline - time.perf_counter()))
+        found = discovery.discover(ladder.rankings[-1], train, validation, deadline, complete=complete)
+        if probes is not None:
+            probes = probes.with_discovery(found)
     first = channels[0]
     return Diagnosis(ladder, first.residuals, first.by_input, first.by_output, hybrids, validation, found, channels,
                      probes)

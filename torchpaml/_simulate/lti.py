@@ -24,6 +24,7 @@ $x_{k+1} = \Phi x_k + \Gamma_a u_k$: $\Gamma_0 = \Gamma_a$ and $\Gamma_1 = 0$.
 from __future__ import annotations
 
 import torch
+from torch import nn
 
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._errors import DataError
@@ -147,11 +148,9 @@ def _through_poles(x: torch.Tensor, numerators: torch.Tensor, poles: torch.Tenso
     if p == 1:
         return iir_filter(x, numerators[:, 0].T, poles.expand(m, n)).sum(-1, keepdim=True)
     w = iir_filter(x, torch.ones(m, 1, dtype=x.dtype, device=x.device), poles.expand(m, n))
-    T = w.shape[1]
-    delays = w.new_zeros(*w.shape, n + 1)  # (batch, time, m, n + 1): w delayed by k, zero before the start
-    for k in range(min(n + 1, T)):
-        delays[:, k:, :, k] = w[:, : T - k]
-    return torch.einsum("btik,kji->btj", delays, numerators)
+    padded = nn.functional.pad(w, (0, 0, n, 0))  # n zeros before the start
+    windows = padded.unfold(1, n + 1, 1)  # (batch, time, m, n + 1): w at t - n .. t, a view
+    return torch.einsum("btik,kji->btj", windows, numerators.flip(0))
 
 
 def _free_response(CN: torch.Tensor, poles: torch.Tensor, x0: torch.Tensor, u: torch.Tensor) -> torch.Tensor:

@@ -5,7 +5,8 @@ Where no library candidate passes the rule and the model is not complete at the 
 physics there (and apply to it), the ``shortlist`` ones with the highest first-order scores are refitted with the physics on the
 training records and scored on validation, as the ranking refits its shortlist (:class:`~torchpaml.Ranker`: its
 probe strength, iteration limit and refit budget); an effect the ranking refitted already is taken from its ranking.
-The force's place also takes the discovery's closed form where the discovery ran, and the output map's place the
+The force's place also takes the discovery's closed form where the discovery ran (a diagnosis probes before it
+discovers, and adds the form afterwards: :meth:`~torchpaml._diagnostics.mismatch.result.MismatchProbes.with_discovery`), and the output map's place the
 closed form of the output's residual over the states and inputs
 (:func:`~torchpaml._diagnostics.discovery.output_map.output_closed_form`); the initial state's place scores
 the model with each validation record's initial state estimated, and says where in time the error sits
@@ -32,7 +33,7 @@ from torchpaml._diagnostics.mismatch.in_time import error_in_time
 from torchpaml._diagnostics.discovery.output_map import NAME as CLOSED_FORM
 from torchpaml._diagnostics.discovery.output_map import output_closed_form
 from torchpaml._diagnostics.mismatch.places import FORCE, INITIAL_STATE, OUTPUT_MAP, PLACES, Place
-from torchpaml._diagnostics.mismatch.result import MismatchProbes, ProbeResult, ranked
+from torchpaml._diagnostics.mismatch.result import DISCOVERED, MismatchProbes, ProbeResult, ranked
 from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE
 from torchpaml._diagnostics.ranking.ranker import Ranker
 from torchpaml._diagnostics.ranking.refits import Refits
@@ -69,18 +70,20 @@ class Prober:
 
     def probe(self, ranking: Ranking, train: Record | Sequence[Record], validation: Record | Sequence[Record], *,
               ranker: Ranker = Ranker(), deadline: float | None = None, discovery: Discovery | None = None,
-              complete: bool = False, first: ModelScore | None = None) -> MismatchProbes:
+              complete: bool = False, first: ModelScore | None = None, discovering: bool = False) -> MismatchProbes:
         """Probe every place on ``ranking``'s baseline (the ladder's last rung), fitted on ``train`` and scored on
         ``validation``. ``ranker``: the ranking's settings, which the refits use; ``deadline``: a
         ``time.perf_counter()`` time by which every refit ends (a refit over it is reported undecided);
-        ``discovery``: the discovery on that rung, whose closed form the force's place takes; ``complete``: the
+        ``discovery``: the discovery on that rung, whose closed form the force's place takes (a diagnosis probes
+        first and adds it afterwards, :meth:`MismatchProbes.with_discovery`); ``discovering``: a discovery follows
+        (the force's place then does not suggest one); ``complete``: the
         rung's residual is noise (no probe runs unless :attr:`always`); ``first``: the ladder's first rung, the
         physics fitted alone, from which an effect's ``far_strength`` is refitted (default: ``ranking``'s
         baseline)."""
         train, validation = as_records(train), as_records(validation)
         score = ranking.baseline
         model, fit = score.model, score.estimate
-        probes = MismatchProbes(model.display_name, score.nrmse_validation,
+        probes = MismatchProbes(model.display_name, score.nrmse_validation, places=tuple(p.name for p in self.places),
                                 in_time=error_in_time(validation, score.validation_outputs),
                                 min_gain=ranking.rule.min_share)
         if complete and not self.always:
@@ -112,8 +115,9 @@ class Prober:
                 self._output_form(ranking, train, validation, ranker, template) if place.name == OUTPUT_MAP else []
             extras += _from_far_strength(effects[place.name], first or score, ranking, train, validation, ranker,
                                          template)
-            rows.append(_row(place, tried, score.nrmse_validation, extras, discovered=discovery is not None))
-        probes.rows = ranked(rows, [place.name for place in self.places])
+            rows.append(_row(place, tried, score.nrmse_validation, extras,
+                             discovered=discovery is not None or discovering))
+        probes.rows = ranked(rows, list(probes.places))
         return probes
 
     @staticmethod
@@ -198,7 +202,7 @@ def _discovered(discovery: Discovery | None) -> list[tuple]:
     """The discovery's closed form, as an option of the force's place; none where it found none."""
     if discovery is None or discovery.discovered is None:
         return []
-    return [(discovery.discovered, discovery.text, "the discovery's closed form")]
+    return [(discovery.discovered, discovery.text, DISCOVERED)]
 
 
 def _row(place: Place, tried: list[EffectEvidence], validation: float, extras: list[tuple],

@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
+from torchpaml._diagnostics.discovery.result import Discovery
 from torchpaml._diagnostics.mismatch.in_time import ErrorInTime
+from torchpaml._diagnostics.mismatch.places import FORCE
 from torchpaml._diagnostics.results import ModelScore
 
-__all__ = ["GAIN_TIE", "MismatchProbes", "ProbeResult"]
+__all__ = ["DISCOVERED", "GAIN_TIE", "MismatchProbes", "ProbeResult"]
 
 #: Gains within this much of each other are the same evidence: they rank in the places' order, so that the same
 #: records name the same place on every machine.
 GAIN_TIE = 0.002
+#: The note of the force place's row where the discovery's closed form is its best option.
+DISCOVERED = "the discovery's closed form"
 
 
 @dataclass
@@ -44,6 +48,21 @@ class MismatchProbes:
     reason: str = ""
     #: the smallest gain that names a place (the selection rule's ``min_share``)
     min_gain: float = 0.05
+    #: the places probed, in the prober's order (which ranks gains within :data:`GAIN_TIE`)
+    places: tuple[str, ...] = ()
+
+    def with_discovery(self, discovery: Discovery | None) -> MismatchProbes:
+        """The table with the discovery's closed form as an option of the force's place (:data:`FORCE`): it takes the
+        row where it lowers the validation mismatch more than the row's best library effect. The same table where
+        no probe ran, no discovery ran, or it found no closed form."""
+        found = None if discovery is None else discovery.discovered
+        if not self.rows or found is None:
+            return self
+        gain = 1.0 - found.nrmse_validation / self.validation
+        rows = [replace(row, fitted=discovery.text, validation=found.nrmse_validation, gain=gain, note=DISCOVERED,
+                        score=found)
+                if row.place == FORCE and (row.gain is None or gain > row.gain) else row for row in self.rows]
+        return replace(self, rows=ranked(rows, list(self.places)))
 
     @property
     def best(self) -> ProbeResult | None:
