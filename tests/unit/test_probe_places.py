@@ -1,12 +1,14 @@
 """The probes' places and their bookkeeping: every library effect has one place, where in time an error sits, the
 ranking of the places' gains (ties by the places' order), and a place naming no library effect is refused."""
 
+from types import SimpleNamespace
+
 import pytest
 import torch
 
 from torchpaml import EFFECTS, ConfigurationError, Prober, Record
 from torchpaml.analysis import PLACES, Place, ProbeResult, error_in_time
-from torchpaml._diagnostics.mismatch.result import GAIN_TIE, MismatchProbes, ranked
+from torchpaml._diagnostics.mismatch.result import DISCOVERED, GAIN_TIE, MismatchProbes, ranked
 
 
 def test_every_library_effect_is_probed_at_exactly_one_place():
@@ -49,3 +51,20 @@ def test_gains_within_the_tie_rank_in_the_places_order_and_the_best_needs_the_mi
     assert probes.best.place == "actuator dynamics" and "the actuator dynamics (a: validation 70.00 %" in probes.describe()
     low = MismatchProbes("m", 0.7, [ProbeResult("extra mode", "", "e", 0.7, 0.02)])
     assert low.best is None and "at none of these places" in low.describe()
+
+
+def test_the_discoverys_closed_form_joins_the_force_place_after_the_probes():
+    """A diagnosis probes before it discovers: the discovery's form then takes the force's row where it gains more
+    than the row's library effect, and the table is ranked again; a discovery that found no form changes nothing."""
+    rows = [ProbeResult("sensor dynamics", "a lag", "sensor_lag", 0.080, 0.20),
+            ProbeResult("force", "a force", "quadratic_damping", 0.090, 0.10)]
+    probes = MismatchProbes("m", 0.100, rows=rows, places=("sensor dynamics", "force"))
+    found = SimpleNamespace(discovered=SimpleNamespace(nrmse_validation=0.050), text="- 0.6*v**3")
+    joined = probes.with_discovery(found)
+    assert [r.place for r in joined.rows] == ["force", "sensor dynamics"]
+    assert joined.best.fitted == "- 0.6*v**3" and joined.best.gain == pytest.approx(0.5)
+    assert joined.best.note == DISCOVERED and probes.rows[1].fitted == "quadratic_damping"  # the original kept
+    worse = SimpleNamespace(discovered=SimpleNamespace(nrmse_validation=0.095), text="- 0.1*v**3")
+    assert probes.with_discovery(worse).rows[1].fitted == "quadratic_damping"
+    assert probes.with_discovery(SimpleNamespace(discovered=None, text="")) is probes
+    assert MismatchProbes("m", 0.1, reason="complete").with_discovery(found).rows == []
