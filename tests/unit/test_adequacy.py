@@ -40,3 +40,18 @@ def test_an_adequate_hybrid_over_a_residual_that_a_linear_filter_explains_is_cov
     assert not assess_adequacy(0.2008, 0.0191, 0.2065, 0.1416).covering  # not measured
     alarm = assess_adequacy(0.5, 0.3, linear_share=0.9)  # inadequate already: the alarm, not the caveat
     assert alarm.inadequate and not alarm.covering
+
+
+def test_complete_only_at_the_records_noise_floor():
+    # the pendulum with a cubic damping behind quadratic_damping and dynamic_friction: training 1.3 %,
+    # white, and the residual reduces nothing; validation 2.14 % against a floor of 1 %: not complete, and the
+    # verdict says how far above the floor it is
+    above = assess_adequacy(0.013, 0.0129, 0.0214, 0.0214, residual_white=True, noise_floor=0.010)
+    assert not above.complete and above.inadequate and above.noise_floor == 0.010
+    assert "on validation it is 2.1 times the noise floor read from the records (2.14 % against 1.00 %)" \
+        in above.message
+    at = assess_adequacy(0.0102, 0.0101, 0.0115, 0.0116, residual_white=True, noise_floor=0.010)  # 1.15 times
+    assert at.complete and "1.1 times the noise floor" in at.message
+    assert assess_adequacy(0.0102, 0.0101, 0.0120, 0.0121, residual_white=True, noise_floor=0.010).complete  # 1.2
+    assert not assess_adequacy(0.0102, 0.0101, 0.0121, 0.0122, residual_white=True, noise_floor=0.010).complete
+    assert "more than 1000 times" in assess_adequacy(0.5, 0.3, 0.5, 0.4, noise_floor=0.0).message

@@ -15,7 +15,9 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    close the gap and says so; on physics whose training residual is noise by effect size (its
    cross-correlation with the input below :data:`NOISE_CORRELATION` at all but :data:`WHITE_SHARE`
    of the lags, coloured or not, whatever the record's length, and the orthogonal residual unable to
-   reduce it: :data:`~torchpaml._diagnostics.analysis.adequacy.NOISE_RATIO`) it says that the physics is
+   reduce it: :data:`~torchpaml._diagnostics.analysis.adequacy.NOISE_RATIO`) and whose validation mismatch is within
+   :data:`~torchpaml._diagnostics.analysis.adequacy.FLOOR_FACTOR` times the noise floor read from the records
+   (:mod:`~torchpaml._diagnostics.analysis.noise_floor`), it says that the physics is
    complete at that noise level. The two residual fits are independent and run in two threads where torch has two
    or more (their filtering, in scipy and torch, releases the GIL: 36 s -> 27 s at 100 000 samples, the same
    numbers), in one where it has one (a fleet's worker, whose share of the cores is one);
@@ -47,6 +49,7 @@ import torch
 from torchpaml._data import Record
 from torchpaml._diagnostics.analysis.adequacy import Adequacy, assess_adequacy
 from torchpaml._diagnostics.analysis.channels import ChannelScore, channel_scores, shows_most
+from torchpaml._diagnostics.analysis.noise_floor import noise_floor
 from torchpaml._diagnostics.discovery.discoverer import Discoverer
 from torchpaml._diagnostics.discovery.result import Discovery
 from torchpaml._diagnostics.mismatch.prober import Prober
@@ -309,7 +312,8 @@ def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alp
         hybrid_validation = mismatch(joined_in_time(v_y), joined_in_time(v_physics) + per_record(residual, v_t, v_u))
     noise, linear_share = _noise_like(train[0], joined_in_time(y_physics)[0, :len(train[0].t)])
     adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
-                               residual_white=noise, linear_share=linear_share)
+                               residual_white=noise, linear_share=linear_share,
+                               noise_floor=noise_floor(train + validation, validation))
     return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy,
                        residual)
 

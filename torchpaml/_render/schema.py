@@ -60,6 +60,7 @@ def hybrid_to_dict(hybrid: HybridScore) -> dict:
     return {"model": hybrid.model, "nrmse_train": hybrid.hybrid_train, "nrmse_validation": hybrid.hybrid_validation,
             "physics_nrmse_train": hybrid.physics_train, "physics_nrmse_validation": hybrid.physics_validation,
             "inadequate": hybrid.adequacy.inadequate, "covering": hybrid.adequacy.covering,
+            "complete": hybrid.adequacy.complete, "noise_floor": hybrid.adequacy.noise_floor,
             "message": hybrid.adequacy.message}
 
 

@@ -9,10 +9,15 @@ record, and it also beats the physics on validation. The alarm goes off when eit
 The physics is then inadequate in this regime, and the hybrid's number must not be quoted as
 a model's accuracy. The exception is a physics whose residual is noise, by effect size: linearly
 uncorrelated with the input (``residual_white``; :func:`~torchpaml.diagnose` decides it
-from :func:`~torchpaml.residual_analysis`; coloured sensor noise counts as noise), *and*
-beyond the reach of the orthogonal residual, which sees odd nonlinear functions of the input too
-($m_{\text{hybrid}} > $ :data:`NOISE_RATIO` $\, m_{\text{physics}}$ on training). Then there is no gap
-to close, and the verdict says that the physics is complete at that noise level. A residual that the
+from :func:`~torchpaml.residual_analysis`; coloured sensor noise counts as noise), beyond the reach of the
+orthogonal residual, which sees odd nonlinear functions of the input too
+($m_{\text{hybrid}} > $ :data:`NOISE_RATIO` $\, m_{\text{physics}}$ on training), *and* at the noise floor on
+validation: $m_{\text{physics}} \le$ :data:`FLOOR_FACTOR` times the floor read from the records
+(:func:`~torchpaml._diagnostics.analysis.noise_floor.noise_floor`, a fraction of the validation records' RMS).
+Then there is no gap to close, and the verdict says that the physics is complete at that noise level. A training
+residual that looks like noise while validation stays above the floor is not complete: a fitted effect may stand in
+for the missing one on the training record (a memory effect for a cubic damping), and the verdict says how far
+above the floor the physics is. A residual that the
 hybrid does reduce (a missing friction is odd in the input and shows no linear correlation) is not
 noise, whatever its linear correlation.
 
@@ -31,11 +36,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Adequacy", "LINEAR_SHARE", "NOISE_RATIO", "assess_adequacy"]
+__all__ = ["Adequacy", "FLOOR_FACTOR", "LINEAR_SHARE", "NOISE_RATIO", "assess_adequacy"]
 
 #: A residual linearly uncorrelated with the input is noise when the orthogonal residual removes less than
 #: 10 % of the training mismatch (the hybrid's is above this share of the physics').
 NOISE_RATIO = 0.9
+#: The most a complete physics' validation mismatch may be, in multiples of the noise floor read from the records.
+FLOOR_FACTOR = 1.2
 #: The share of the physics' residual variance that a linear filter of the input explains above which an adequate
 #: hybrid may be covering a missing dynamic effect (module docstring). Measured on the linear oscillator's residual,
 #: 600-sample multisine records of the hidden-effect cases (``tests/diagnosis/test_hidden_effects.py``): 0.63 for a
@@ -47,8 +54,9 @@ LINEAR_SHARE = 0.5
 class Adequacy:
     """The verdict, the ratios it rests on, and a sentence for reports. ``covering``: adequate, but a linear filter
     of the input explains most of the physics' residual, the mark of a missing dynamic effect (module docstring);
-    ``complete``: the physics' residual is noise that the orthogonal residual cannot reduce (physics complete at
-    this noise level)."""
+    ``complete``: the physics' residual is noise that the orthogonal residual cannot reduce, at the validation
+    records' noise floor (physics complete at this noise level); ``noise_floor``: that floor, a fraction (``None``:
+    not measured)."""
 
     inadequate: bool
     train_ratio: float
@@ -56,6 +64,7 @@ class Adequacy:
     message: str
     covering: bool = False
     complete: bool = False
+    noise_floor: float | None = None
 
     @property
     def recommends_hybrid(self) -> bool:
@@ -72,18 +81,32 @@ def assess_adequacy(
     closes: float = 0.5,
     residual_white: bool = False,
     linear_share: float | None = None,
+    noise_floor: float | None = None,
 ) -> Adequacy:
     """Mismatches as fractions (module docstring); ``closes`` is κ. ``residual_white``: the physics' training
     residual is linearly uncorrelated with the input; ``linear_share``: the share of its variance that a linear
-    filter of the input explains (``None``: not measured)."""
+    filter of the input explains (``None``: not measured); ``noise_floor``: the records' noise floor, a fraction
+    of the validation records' RMS (``None``: not measured, and the floor does not enter the verdict)."""
     train_ratio = hybrid_train / physics_train
     validation_ratio = None if physics_validation is None else hybrid_validation / physics_validation
-    if residual_white and train_ratio > NOISE_RATIO:
+    above = None if noise_floor is None or physics_validation is None else \
+        physics_validation / max(noise_floor, 1e-300)
+    floor = "" if above is None else (f"; on validation {100 * physics_validation:.2f} %, "
+                                      f"{_times(above)} the noise floor read from the records "
+                                      f"({100 * noise_floor:.2f} %)")
+    noise = residual_white and train_ratio > NOISE_RATIO
+    if noise and (above is None or above <= FLOOR_FACTOR):
         return Adequacy(False, train_ratio, validation_ratio, (
             "physics complete at this noise level: its training residual is uncorrelated with the input (noise, "
             f"white or coloured), and the orthogonal residual has nothing to add ({100 * physics_train:.1f} % -> "
-            f"{100 * hybrid_train:.1f} % on training); use the physics alone"), complete=True)
+            f"{100 * hybrid_train:.1f} % on training){floor}; use the physics alone"), complete=True,
+            noise_floor=noise_floor)
     reasons = []
+    if noise:
+        reasons.append(
+            f"its training residual looks like noise, but on validation it is {_times(above)} the noise floor read "
+            f"from the records ({100 * physics_validation:.2f} % against {100 * noise_floor:.2f} %): an "
+            "effect is missing, or a fitted effect stands in for it on the training record")
     if train_ratio > closes:
         reasons.append(
             f"the orthogonal residual closes only {100 * (1 - train_ratio):.0f} % of the physics' training error "
@@ -95,15 +118,20 @@ def assess_adequacy(
             f"({100 * physics_validation:.1f} %)"
         )
     if reasons:
-        message = ("PHYSICS INADEQUATE in this regime: " + "; ".join(reasons) + ". Fix the physics (a missing "
-                   "effect, a wrong structure) before quoting the hybrid's accuracy.")
-        return Adequacy(True, train_ratio, validation_ratio, message)
+        message = ("PHYSICS INADEQUATE in this regime: " + "; ".join(reasons) + ("" if noise else floor) +
+                   ". Fix the physics (a missing effect, a wrong structure) before quoting the hybrid's accuracy.")
+        return Adequacy(True, train_ratio, validation_ratio, message, noise_floor=noise_floor)
     message = (f"physics adequate: the orthogonal residual takes the training mismatch from "
-               f"{100 * physics_train:.1f} % to {100 * hybrid_train:.1f} %")
+               f"{100 * physics_train:.1f} % to {100 * hybrid_train:.1f} %{floor}")
     covering = linear_share is not None and linear_share >= LINEAR_SHARE
     if covering:
         message += (f"; but a linear filter of the input explains {100 * linear_share:.0f} % of the physics' residual, "
                     "which a missing static effect does not do: the residual, itself a filter of the input, may be "
                     "covering a missing dynamic effect (an actuator lag, a sensor's dynamics) that the physics should "
                     "carry; rank the input_lag effect, or add the dynamics to the physics")
-    return Adequacy(False, train_ratio, validation_ratio, message, covering)
+    return Adequacy(False, train_ratio, validation_ratio, message, covering, noise_floor=noise_floor)
+
+
+def _times(ratio: float) -> str:
+    """A ratio to the noise floor in words: ``1.3 times``, ``240 times``, ``more than 1000 times``."""
+    return "more than 1000 times" if ratio > 1000 else f"{ratio:.2g} times" if ratio < 100 else f"{ratio:.0f} times"
