@@ -300,8 +300,9 @@ def hybrid_residual(step: ModelScore, train: Record | Sequence[Record], alpha: f
 
 
 def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alpha: float,
-            deadline: float | None) -> HybridScore:
-    """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid."""
+            deadline: float | None, floor: float) -> HybridScore:
+    """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid; ``floor``: the
+    records' noise floor (:func:`~torchpaml._diagnostics.analysis.noise_floor.noise_floor`)."""
     t, u, y = _signals(train)
     residual, y_physics = hybrid_residual(step, train, alpha, deadline)
     with torch.no_grad():
@@ -313,7 +314,7 @@ def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alp
     noise, linear_share = _noise_like(train[0], joined_in_time(y_physics)[0, :len(train[0].t)])
     adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
                                residual_white=noise, linear_share=linear_share,
-                               noise_floor=noise_floor(train + validation, validation))
+                               noise_floor=floor)
     return HybridScore(step.name, step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation, adequacy,
                        residual)
 
@@ -377,9 +378,10 @@ def diagnose(
     base = ladder.steps[0]
     channels = channel_scores(base, ladder.final, validation)
     alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
+    floor = noise_floor(train + validation, validation)  # one reading for both rungs
     log.info("fitting the Chebyshev residual on top")
     with ThreadPoolExecutor(min(2, torch.get_num_threads())) as pool:  # one where torch has one (a fleet's worker)
-        hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha, deadline),
+        hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha, deadline, floor),
                                 _distinct(base, ladder.final)))
     complete = hybrids[-1].adequacy.complete
     probes = None if prober is None else prober.probe(ladder.rankings[-1], train, validation, ranker=ranker,
