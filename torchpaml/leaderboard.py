@@ -18,6 +18,7 @@ from pathlib import Path
 
 from torchpaml._errors import TorchpamlError
 from torchpaml._leaderboard.benchmark import Benchmark, Published
+from torchpaml._leaderboard.limit import MIN_REMOVED, LimitFigures, limit_of
 from torchpaml._leaderboard.protocols import noise_floor, periodic_twice, with_effect
 from torchpaml._leaderboard.registry import BENCHMARKS, benchmark
 from torchpaml._leaderboard.result import (LIMITS, SCHEMA_VERSION, agreement_evidence, arguments, goal_entry,
@@ -26,10 +27,10 @@ from torchpaml._leaderboard.result import (LIMITS, SCHEMA_VERSION, agreement_evi
 from torchpaml._leaderboard.runner import diagnosed_goal, run_benchmark
 from torchpaml.cli.progress import progress_lines
 
-__all__ = ["BENCHMARKS", "Benchmark", "LIMITS", "Published", "SCHEMA_VERSION", "agreement_evidence", "arguments",
-           "benchmark", "diagnosed_goal", "goal_entry", "hybrid_entry", "hypothesis_entry", "ladder_entries",
-           "noise_floor", "periodic_twice", "run_benchmark", "tried_entries", "validation_agreement", "with_effect",
-           "write_result"]
+__all__ = ["BENCHMARKS", "Benchmark", "LIMITS", "LimitFigures", "MIN_REMOVED", "Published", "SCHEMA_VERSION",
+           "agreement_evidence", "arguments", "benchmark", "diagnosed_goal", "goal_entry", "hybrid_entry",
+           "hypothesis_entry", "ladder_entries", "limit_of", "noise_floor", "periodic_twice", "run_benchmark",
+           "tried_entries", "validation_agreement", "with_effect", "write_result"]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -31,7 +31,8 @@ sample is used, not even the loader's 5-sample initialisation window.
 
 Writes ``DIR/cascaded_tanks.json`` in the shape of ``silverbox.json``, with ``rmse: {"test": V}`` and
 ``nrmse: {"test": RMSE / std y}``, plus the leaderboard's fields (:mod:`torchpaml.leaderboard`; ``goal`` with what
-limits the figure, :func:`goal`), and the diagnosis folder ``DIR/diagnosis/``.
+limits the figure: the registry's rule, :func:`~torchpaml.leaderboard.diagnosed_goal`, with :func:`measured`'s
+figures), and the diagnosis folder ``DIR/diagnosis/``.
 """
 
 from __future__ import annotations
@@ -47,7 +48,7 @@ from tanks import (FREE_SPILL_RATE, MAX_SPILL_RATE, LowerOverflow, SensorClip, S
 from torchpaml import (Budget, DeadZone, Discoverer, Estimate, ModelScore, OutputSaturation, Record, diagnose,
                        fit_physics, simulate_record, write_report)
 from torchpaml.cli.progress import progress_lines
-from torchpaml.leaderboard import (SCHEMA_VERSION, agreement_evidence, benchmark, goal_entry, hybrid_entry,
+from torchpaml.leaderboard import (SCHEMA_VERSION, agreement_evidence, benchmark, diagnosed_goal, hybrid_entry,
                                    hypothesis_entry, ladder_entries, tried_entries, validation_agreement, with_effect,
                                    write_result)
 from torchpaml.report import diagnosis_to_dict, discovery_to_dict, ranking_table
@@ -95,24 +96,16 @@ def hypotheses(final: ModelScore, estimation: Record, train: Record, validation:
                              start_states=final.train_states)]
 
 
-def goal(models: list[dict], hybrid: dict, spill: dict | None, validation: float, tried: list[dict]) -> dict:
-    """The goal on test, and what limits the figure: the model class where neither the spill's rate (bounded
-    against free) nor the data's split explains the error, which stands on validation as on test; and how far the
-    validation gains of the hypotheses tried predict their test figures (:func:`validation_agreement`)."""
-    final = models[-1]["rmse"]["test"]
-    evidence = {"bounded_spill": final, "validation": validation}
-    explanation = (f"the model class: the final grey box's error on the held-out quarter of the estimation record "
-                   f"({validation:.3g} V) is of the test's size ({final:.3g} V), so it is not the test record alone")
+def measured(models: list[dict], spill: dict | None, validation: float, tried: list[dict]) -> tuple[dict, tuple]:
+    """The protocol's own figures beside the registry's rule, for the goal's evidence: the final grey box's RMSE on
+    the held-out quarter of the estimation record (V), the spill left free (its test RMSE and rate), and how far the
+    validation gains of the hypotheses tried predict their test figures (:func:`validation_agreement`, with its
+    computed sentence)."""
+    evidence = {"validation": validation}
     if spill is not None:
         evidence |= {"free_spill": spill["rmse"]["test"], "free_spill_rate": spill["rate"]}
-        explanation += (f"; the spill's rate does not limit it either: left free, the fit makes the spill "
-                        f"{spill['rate']:.4g} 1/s (the upper level clips at the rim) and the test figure is "
-                        f"{spill['rmse']['test']:.3g} V against {final:.3g} V with the rate bounded")
     agreement, sentence = agreement_evidence(validation_agreement(tried, models, "test"), "test", BENCHMARK.unit)
-    if agreement:
-        evidence |= agreement
-        explanation += f"; {sentence}"
-    return goal_entry(BENCHMARK, models, hybrid, "model class", evidence, explanation)
+    return evidence | agreement, (sentence,) if agreement else ()
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -154,7 +147,8 @@ def main(argv: list[str] | None = None) -> dict:
               "hybrids": diagnosis_to_dict(diagnosis)["hybrid"], "free_spill": spill,
               "tried": [*tried_entries(BENCHMARK, diagnosis, tests),
                         *hypotheses(final, estimation, train, validation, tests)]}
-    result["goal"] = goal(models, hybrid, spill, validation_rmse, result["tried"])
+    evidence, notes = measured(models, spill, validation_rmse, result["tried"])
+    result["goal"] = diagnosed_goal(BENCHMARK, diagnosis, models, hybrid, evidence=evidence, notes=notes)
     result["seconds"] = time.perf_counter() - start
     if args.discover:
         found = diagnose(physics, [], train, validation, initial_state=Estimate(), discovery=Discoverer(),

@@ -23,9 +23,10 @@ that a force error does not integrate into a drift.
 4. A hypothesis of the protocol, tried beside the diagnosis and not kept (``tried``, stage ``protocol``): the final
    grey box refitted on the whole estimation record, validation part included.
 
-Writes ``DIR/emps.json`` (the leaderboard's fields, :mod:`torchpaml.leaderboard`, ``rmse: {test, test_velocity}``, with what limits the figure in ``goal``
-(:func:`goal`), plus ``found`` and ``friction {forward_N, backward_N}``: the Coulomb friction against each direction of
-motion, the offset included) and ``DIR/diagnosis/``.
+Writes ``DIR/emps.json`` (the leaderboard's fields, :mod:`torchpaml.leaderboard`, ``rmse: {test, test_velocity}``,
+with what limits the figure in ``goal``: the registry's rule, :func:`~torchpaml.leaderboard.diagnosed_goal`, with
+:func:`measured`'s figures; plus ``found`` and ``friction {forward_N, backward_N}``: the Coulomb friction against
+each direction of motion, the offset included) and ``DIR/diagnosis/``.
 """
 
 from __future__ import annotations
@@ -38,8 +39,9 @@ from rigid_body import RigidBody  # the user's physics, beside this script
 
 from torchpaml import ConstantForce, CoulombFriction, Estimate, QuadraticDamping, Ranker, Record, diagnose, write_report
 from torchpaml.cli.progress import progress_lines
-from torchpaml.leaderboard import (SCHEMA_VERSION, agreement_evidence, arguments, benchmark, goal_entry, hybrid_entry,
-                                   hypothesis_entry, ladder_entries, tried_entries, validation_agreement, write_result)
+from torchpaml.leaderboard import (SCHEMA_VERSION, agreement_evidence, arguments, benchmark, diagnosed_goal,
+                                   hybrid_entry, hypothesis_entry, ladder_entries, tried_entries, validation_agreement,
+                                   write_result)
 
 BENCHMARK = benchmark("emps")
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / BENCHMARK.folder
@@ -58,23 +60,14 @@ def friction(parameters: dict[str, float]) -> dict[str, float]:
     return {"forward_N": coulomb - offset, "backward_N": coulomb + offset}
 
 
-def goal(final, parts: list[Record], models: list[dict], hybrid: dict, tried: list[dict]) -> dict:
-    """The goal on test, and what limits the figure: the model class where the final grey box drifts as far on the
-    estimation record's own parts (each started from its first samples, as the test) as on test, so that what it
-    misses is in the estimation record too, not only in the test's unmeasured force pulses; and how far the
-    validation gains of the hypotheses tried predict their test figures (:func:`validation_agreement`)."""
+def measured(final, parts: list[Record], models: list[dict], tried: list[dict]) -> tuple[dict, tuple]:
+    """The protocol's own figures beside the registry's rule, for the goal's evidence: the final grey box's drift
+    (mm) on each part of the estimation record, each a free run from the same first samples as the test, and how
+    far the validation gains of the hypotheses tried predict their test figures (:func:`validation_agreement`, with
+    its computed sentence)."""
     evidence = {record.name: BENCHMARK.score(final.model, record, solver=final.solver) for record in parts}
-    evidence["test"] = models[-1]["rmse"]["test"]
-    explanation = (f"the model class: the final grey box drifts {evidence['train']:.2g} mm on the estimation record's "
-                   f"training part and {evidence['validation']:.2g} mm on its validation part, both free runs from "
-                   f"the same {BENCHMARK.init_window}-sample window as the test ({evidence['test']:.2g} mm): the force "
-                   f"it misses acts during the estimation run too, which has no external pulses. An integrating plant "
-                   f"turns any such force error into a drift of the position")
     agreement, sentence = agreement_evidence(validation_agreement(tried, models, "test"), "test", BENCHMARK.unit)
-    if agreement:
-        evidence |= agreement
-        explanation += f". {sentence[0].upper()}{sentence[1:]}"
-    return goal_entry(BENCHMARK, models, hybrid, "model class", evidence, explanation)
+    return evidence | agreement, (sentence,) if agreement else ()
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -100,7 +93,9 @@ def main(argv: list[str] | None = None) -> dict:
     tried = [*tried_entries(BENCHMARK, diagnosis, tests), whole]
     result = {"schema_version": SCHEMA_VERSION, "benchmark": BENCHMARK.name, "protocol": BENCHMARK.protocol(),
               "found": diagnosis.ladder.added, "friction": friction(final.parameters), "models": models,
-              "hybrid": hybrid, "goal": goal(final, [train, validation], models, hybrid, tried), "tried": tried}
+              "hybrid": hybrid, "tried": tried}
+    evidence, notes = measured(final, [train, validation], models, tried)
+    result["goal"] = diagnosed_goal(BENCHMARK, diagnosis, models, hybrid, evidence=evidence, notes=notes)
     result["seconds"] = time.perf_counter() - start
     return write_result(args.out, result, diagnosis.verdict)
 

@@ -27,7 +27,8 @@ Writes ``DIR/silverbox.json``::
      "seconds": wall time}
 
 plus the leaderboard's fields (``schema_version``, ``benchmark``, ``protocol``, ``hybrid``, ``goal`` with what
-limits the figure (:func:`goal`), ``probes``; :mod:`torchpaml.leaderboard`) and ``noise_floor {rms, samples}``: the
+limits the figure, the registry's rule on the measured figures (:func:`~torchpaml.leaderboard.diagnosed_goal`, with
+the noise floor below), ``probes``; :mod:`torchpaml.leaderboard`) and ``noise_floor {rms, samples}``: the
 output noise's RMS in mV, estimated on the training record where its input repeats at the period
 (:func:`~torchpaml.leaderboard.noise_floor`)
 
@@ -44,7 +45,7 @@ import numpy as np
 
 from torchpaml import Discoverer, Oscillator, Ranker, Record, default_effects, diagnose, write_report
 from torchpaml.cli.progress import progress_lines
-from torchpaml.leaderboard import (SCHEMA_VERSION, arguments, benchmark, goal_entry, hybrid_entry, ladder_entries,
+from torchpaml.leaderboard import (SCHEMA_VERSION, arguments, benchmark, diagnosed_goal, hybrid_entry, ladder_entries,
                                    noise_floor, tried_entries, write_result)
 from torchpaml.report import diagnosis_to_dict, discovery_to_dict
 
@@ -52,9 +53,6 @@ BENCHMARK = benchmark("silverbox")
 DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / BENCHMARK.folder
 #: Samples per period of the multisine realisations (the data README).
 PERIOD = 8192
-#: The share of the final error an input-driven residual must remove on test to count as a missing response to the
-#: input (the rule's ``min_share``).
-MIN_REMOVED = 0.05
 
 
 def frequency_response_start(record: Record) -> Oscillator:
@@ -84,31 +82,6 @@ def nrmse(rmse: dict[str, float], tests: dict[str, Record]) -> dict[str, float]:
             for name, value in rmse.items()}
 
 
-def goal(result: dict) -> dict:
-    """The goal on test_multisine, and what limits the figure: the model class where the error stands above the
-    noise floor. Where an input-driven residual removes part of it on test, that part is a response to the input
-    that the grey box does not express; where it removes almost none, what remains is not such a response."""
-    split = BENCHMARK.goal_split
-    final, floor = result["models"][-1]["rmse"][split], result["noise_floor"]["rms"]
-    hybrid = result["hybrid"]["rmse"][split]
-    evidence = {"final": final, "noise_floor": floor, "final_over_noise_floor": final / floor,
-                "with_orthogonal_residual": hybrid}
-    explanation = (f"the model class: the final grey box's error ({final:.3g} mV) is {final / floor:.1f} times the "
-                   f"output noise floor ({floor:.3g} mV), {math.sqrt(max(final**2 - floor**2, 0.0)):.2g} mV beside "
-                   f"the noise in quadrature")
-    if hybrid is not None and hybrid < (1 - MIN_REMOVED) * final:
-        explanation += (f", and an input-driven residual (the Chebyshev-Hammerstein model) removes "
-                        f"{1 - hybrid / final:.0%} of it on test ({hybrid:.3g} mV): that part of the error is a "
-                        f"response to the input that the physics does not express. The residual's alarm rejects "
-                        f"the hybrid on the training records, so its figure is not quoted as the model's accuracy")
-    elif hybrid is not None:
-        explanation += (f"; an input-driven residual (the Chebyshev-Hammerstein model) removes almost none of it on "
-                        f"test ({hybrid:.3g} mV), and the diagnosis calls the physics complete at the training "
-                        f"record's noise: what remains is not a response to the input that a static map and a linear "
-                        f"filter express")
-    return goal_entry(BENCHMARK, result["models"], result["hybrid"], "model class", evidence, explanation)
-
-
 def main(argv: list[str] | None = None) -> dict:
     parser = arguments(BENCHMARK, __doc__, DATA)
     parser.add_argument("--discover", action="store_true", help="also discover a force outside the library")
@@ -131,7 +104,7 @@ def main(argv: list[str] | None = None) -> dict:
               "hybrid": hybrid_entry(BENCHMARK, final, [train], alpha, alarm, tests),
               "hybrids": diagnosis_to_dict(diagnosis)["hybrid"],
               "tried": tried_entries(BENCHMARK, diagnosis, tests)}
-    result["goal"] = goal(result)
+    result["goal"] = diagnosed_goal(BENCHMARK, diagnosis, models, result["hybrid"], floor=BENCHMARK.scale * floor)
     result["seconds"] = time.perf_counter() - start
     if args.discover:  # discovery alone, on the linear physics: which force is missing, in closed form
         found = diagnose(frequency_response_start(train), [], train, validation, discovery=Discoverer(),

@@ -17,6 +17,16 @@ pytestmark = pytest.mark.skipif(not (emps.DATA / "estimation.csv").is_file(),
                                 reason="the EMPS data (../shared/data/emps) are absent")
 
 
+def rule_label(evidence: dict) -> str:
+    """The limit the registry's rule gives these numbers, re-derived from the JSON alone: at the floor where the
+    error is within 1.2 times the floor read on repeats (else where the diagnosis calls the model complete); an input
+    response left where the input-driven residual removes at least 5 % of the error."""
+    floor = evidence.get("noise_floor")
+    at_floor = evidence["final"] <= 1.2 * floor if floor is not None else evidence["complete"]
+    responds = evidence.get("with_input_residual", math.inf) <= 0.95 * evidence["final"]
+    return "model class" if not at_floor else "undetermined" if responds else "noise floor"
+
+
 def check_contract(result: dict, benchmark: str, splits: list[str]) -> None:
     """The leaderboard's fields (:mod:`torchpaml.leaderboard`), finite figures, and the ladder from the linear
     physics to the final grey box."""
@@ -37,6 +47,7 @@ def check_contract(result: dict, benchmark: str, splits: list[str]) -> None:
     assert goal["figure"] == counted["rmse"][goal["split"]] and goal["met"] == (goal["figure"] <= goal["value"])
     assert goal["limit"]["kind"] in leaderboard.LIMITS and goal["limit"]["explanation"]
     assert goal["limit"]["evidence"] and all(math.isfinite(v) for v in goal["limit"]["evidence"].values())
+    assert goal["limit"]["kind"] == rule_label(goal["limit"]["evidence"])
     tried = result["tried"]  # every hypothesis fitted, the ladder's refits then the probes, each scored on test
     assert all(set(row) == {"stage", "place", "hypothesis", "validation_gain", "rmse", "kept", "named"} for row in tried)
     assert [row["hypothesis"] for row in tried if row["kept"]] == result["found"]

@@ -13,7 +13,9 @@ residual of the paper on top (:func:`~torchpaml.analysis.hybrid_residual`, fitte
 ``accepted`` where the final rung's alarm recommends it (neither inadequate nor complete physics), and an RMSE of
 ``null`` where a test input leaves the residual's domain. ``goal`` holds the benchmark's goal on its headline split
 (:func:`goal_entry`): the figure that counts (the hybrid's where its alarm accepts it, else the final grey box's),
-whether it meets the goal, and what limits it: one of :data:`LIMITS`, with the measured numbers that show it.
+whether it meets the goal, and what limits it: one of :data:`LIMITS`, with the measured numbers that show it, both
+written by the one rule :func:`~torchpaml._leaderboard.limit.limit_of` (through
+:func:`~torchpaml._leaderboard.runner.diagnosed_goal`).
 ``tried`` holds every hypothesis the diagnosis fitted (:func:`tried_entries`): each rung's refitted candidates, then
 the probes of where the final grey box's mismatch points, each with its validation gain, its test figures, whether
 it is kept in the final grey box, and whether the probes name its place; a protocol adds the hypotheses it tries
@@ -41,6 +43,7 @@ from torchpaml._errors import ConfigurationError, DomainError, SimulationError
 from torchpaml._fit.initial_state import InitialState
 from torchpaml._fit.physics_fit import fit_physics
 from torchpaml._leaderboard.benchmark import Benchmark
+from torchpaml._leaderboard.limit import LIMITS
 from torchpaml._render.schema import diagnosis_to_dict
 
 __all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry", "hypothesis_entry", "ladder_entries",
@@ -48,9 +51,6 @@ __all__ = ["LIMITS", "SCHEMA_VERSION", "arguments", "goal_entry", "hybrid_entry"
 
 #: The version of the leaderboard fields; a change of their meaning raises it.
 SCHEMA_VERSION = 1
-#: What may limit a figure: the measurement noise, the model class (a deterministic error the physics cannot
-#: express), or data that do not determine a parameter (or the state a free run starts from).
-LIMITS = ("noise floor", "model class", "data")
 
 
 def arguments(benchmark: Benchmark, doc: str, data: Path) -> argparse.ArgumentParser:

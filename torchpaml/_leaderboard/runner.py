@@ -20,6 +20,7 @@ from torchpaml._diagnostics.diagnosis import Diagnosis, diagnose
 from torchpaml._diagnostics.ranking.ranker import Ranker
 from torchpaml._errors import ConfigurationError
 from torchpaml._leaderboard.benchmark import Benchmark
+from torchpaml._leaderboard.limit import LimitFigures, limit_of
 from torchpaml._leaderboard.result import (SCHEMA_VERSION, goal_entry, hybrid_entry, ladder_entries, tried_entries,
                                            write_result)
 from torchpaml._physics.effects import default_effects
@@ -57,22 +58,24 @@ def run_benchmark(benchmark: Benchmark, out: Path, data: Path, shortlist: int = 
     return write_result(out, result, diagnosis.verdict)
 
 
-def diagnosed_goal(benchmark: Benchmark, diagnosis: Diagnosis, models: list[dict], hybrid: dict) -> dict:
-    """The goal entry (:func:`~torchpaml._leaderboard.result.goal_entry`) with the limit the diagnosis reads: the
-    noise floor where it calls the final grey box complete at the training records' noise, else the model class,
-    with the place the probes name (where they ran)."""
-    final, split = diagnosis.ladder.final, benchmark.goal_split
-    evidence = {"validation_nrmse": final.nrmse_validation, split: models[-1]["rmse"][split]}
-    if diagnosis.hybrids[-1].adequacy.complete:
-        explanation = (f"the noise floor: the diagnosis calls the final grey box complete at the training records' "
-                       f"noise (its validation mismatch, {100 * final.nrmse_validation:.3g} %, is noise that the "
-                       f"orthogonal residual cannot reduce)")
-        return goal_entry(benchmark, models, hybrid, "noise floor", evidence, explanation)
-    explanation = (f"the model class: the final grey box's validation mismatch ({100 * final.nrmse_validation:.3g} %) "
-                   f"is more than noise, and no candidate passes the rule")
-    best = None if diagnosis.probes is None else diagnosis.probes.best
-    if best is not None:
-        evidence["probe_gain"] = best.gain
-        explanation += (f"; the probes point at the {best.place} ({best.fitted}, a validation gain of "
-                        f"{100 * best.gain:.3g} %)")
-    return goal_entry(benchmark, models, hybrid, "model class", evidence, explanation)
+def diagnosed_goal(benchmark: Benchmark, diagnosis: Diagnosis, models: list[dict], hybrid: dict,
+                   floor: float | None = None, evidence: dict[str, float] | None = None,
+                   notes: tuple[str, ...] = ()) -> dict:
+    """The goal entry (:func:`~torchpaml._leaderboard.result.goal_entry`) whose limit and sentence are the one rule's
+    (:func:`~torchpaml._leaderboard.limit.limit_of`) on the measured figures: the final grey box's error on the
+    headline split, the diagnosis' verdict and validation mismatch, the error with the input-driven residual
+    (``hybrid``), the place the probes name (where they ran) and ``floor``, the output noise's RMS read on the
+    input's repeats in the benchmark's unit (``None``: not measured; the diagnosis' verdict stands in).
+
+    ``evidence``: more measured numbers a protocol adds (they do not enter the rule); ``notes``: sentences computed
+    from them (e.g. :func:`~torchpaml._leaderboard.result.agreement_evidence`'s), appended to the rule's."""
+    split, best = benchmark.goal_split, None if diagnosis.probes is None else diagnosis.probes.best
+    figures = LimitFigures(error=models[-1]["rmse"][split], unit=benchmark.unit,
+                           adequacy=diagnosis.hybrids[-1].adequacy, validation=diagnosis.ladder.final.nrmse_validation,
+                           floor=floor, with_residual=hybrid["rmse"][split],
+                           probe=None if best is None else (best.place, best.fitted, best.gain))
+    kind, measured, sentence = limit_of(figures)
+    extra = dict(evidence or {})
+    if extra:
+        notes = (f"also measured: {', '.join(f'{name} {value:.4g}' for name, value in extra.items())}", *notes)
+    return goal_entry(benchmark, models, hybrid, kind, measured | extra, "; ".join([sentence, *notes]))
