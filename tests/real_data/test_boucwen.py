@@ -34,8 +34,8 @@ def test_the_ladder_finds_the_hysteresis_and_beats_the_best_published_figure(tmp
     result = boucwen.main(["--out", str(tmp_path)])
     assert result["found"][0] == "hysteresis"
     final = result["models"][-1]
-    assert final["rmse"]["test_multisine"] <= 1.87e-5  # PNLSS with hysteresis decoupling; measured 4.5e-6 m
-    assert final["rmse"]["test_sinesweep"] <= 1.87e-5
+    assert final["rmse"]["test_multisine"] <= 7.16e-6  # the best black box (a neural state space); measured 2.8e-6 m
+    assert final["rmse"]["test_sinesweep"] <= 7.16e-6
     assert result["seconds"] < 300
     truth = {"m": 2.0, "c": 10.0, "k": 5e4, "hysteresis.k": 2.5e4, "hysteresis.gamma": 800.0,
              "hysteresis.delta": -1100.0}  # the data's README: alpha / m_L, beta * gamma, beta * delta

@@ -35,12 +35,15 @@ __all__ = ["Benchmark", "Published"]
 
 @dataclass(frozen=True)
 class Published:
-    """A published figure on the benchmark's headline split, quoted from its source (not computed here)."""
+    """A published figure on the benchmark's headline split, quoted from its source (not computed here);
+    ``caveat``: how its protocol differs from an honest one (e.g. a model selected on the test record), shown beside
+    it."""
 
     figure: str
     model: str
     source: str
     kind: Literal["black box", "grey box"]
+    caveat: str = ""
 
 
 @dataclass(frozen=True)
