@@ -17,6 +17,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+import sympy
 import torch
 
 from torchpaml import (RK4, TRBDF2, AbstractPhysics, CompiledPathWarning, CubicStiffness, Oscillator,
@@ -213,3 +214,15 @@ def test_a_users_rk4_with_its_own_step_is_not_replaced():
         own = simulate(physics, record.elapsed, record.u[None], solver=Damped(substeps=1))
         plain = simulate(physics, record.elapsed, record.u[None], solver=RK4(substeps=1))
     assert float((own - plain).abs().max()) > 1e-3 * float(plain.abs().max())
+
+
+def test_a_closed_form_with_a_function_c_has_no_name_for_is_a_compile_failure_not_a_crash():
+    """``re`` (what sympy writes for the derivative of ``Abs`` of an expression it cannot call real) has no C name:
+    the printer's refusal becomes the compile failure that the fallback takes, naming the function."""
+    import sympy
+
+    x = sympy.Symbol("x_[0]", real=True)
+    assert "fabs" in compiled.c_function("outputs", "const double *x_", {"out_[0]": sympy.Abs(x)})
+    with pytest.raises(compilers.UnbuildableError, match=r"outputs: its closed form holds a function C has no name "
+                                                          r"for .*: re\)"):
+        compiled.c_function("outputs", "const double *x_", {"out_[0]": sympy.re(sympy.Symbol("z") * x)})

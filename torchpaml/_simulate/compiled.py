@@ -38,6 +38,7 @@ import numpy as np
 import sympy
 import torch
 from sympy.printing.c import C99CodePrinter
+from sympy.printing.codeprinter import PrintMethodNotImplementedError
 from torch import nn
 
 from torchpaml._errors import CompiledPathWarning, ConfigurationError
@@ -141,9 +142,13 @@ def c_function(name: str, arguments: str, assignments: dict[str, sympy.Expr]) ->
     subexpressions first: the one printer of every compiled function."""
     printer = C99CodePrinter()
     shared, reduced = sympy.cse(list(assignments.values()), symbols=sympy.numbered_symbols("c_"))
-    body = "".join(f"    const double {name} = {printer.doprint(value)};\n" for name, value in shared)
-    body += "".join(f"    {target} = {printer.doprint(value)};\n"
-                    for target, value in zip(assignments, reduced, strict=True))
+    try:
+        body = "".join(f"    const double {name} = {printer.doprint(value)};\n" for name, value in shared)
+        body += "".join(f"    {target} = {printer.doprint(value)};\n"
+                        for target, value in zip(assignments, reduced, strict=True))
+    except PrintMethodNotImplementedError as error:  # a function C has no name for: the engine takes the physics
+        raise UnbuildableError(f"{name}: its closed form holds a function C has no name for "
+                               f"({str(error).splitlines()[0]})") from None
     unused = "".join(f"(void){a.split('*')[-1].split()[-1]}; " for a in arguments.split(","))
     return f"static void {name}({arguments}) {{\n    {unused}\n{body}}}\n"
 
