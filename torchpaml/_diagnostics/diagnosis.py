@@ -31,7 +31,11 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    closed form, ranked against the library's best remaining effect), so that it can find a second
    effect on top of a first. It is asked for, not automatic: it trains a
    network through the simulator, so its cost grows with the record's length; it gets what is left of the budget
-   (a progress line says how much), and its closed form then joins the probes' force place.
+   (a progress line says how much), and its closed form then joins the probes' force place. Where the ladder added
+   effects and the last rung's discovery recommends nothing (or, complete, did not search), the discovery also runs
+   on the physics alone (:func:`_against_stand_ins`): its form replaces the ladder's effects where the rule
+   recommends it there, the last rung does not beat it by the rule, and it has fewer fitted parameters; the effects
+   stood in for it (``Discovery.replaces``), and :attr:`Diagnosis.final` is the form.
 """
 
 from __future__ import annotations
@@ -42,7 +46,7 @@ import time
 import warnings
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import torch
 
@@ -183,9 +187,10 @@ class Diagnosis:
         """One paragraph: what is missing, how the error fell, and what the residual on top says."""
         base, final = self.baseline, self.ladder.final
         if self.ladder.added:
+            replaced = self.discovery is not None and bool(self.discovery.replaces)
             found = (f"missing effect(s) found: {', '.join(self.ladder.added)}. Validation mismatch "
                      f"{100 * base.nrmse_validation:.2f} % -> {100 * final.nrmse_validation:.2f} %. "
-                     f"Final model: {final.equation}.")
+                     f"{'Last rung' if replaced else 'Final model'}: {final.equation}.")
         else:
             best = next((e for e in self.ranking.entries if e.improvement is not None), None)
             detail = "" if best is None else (
@@ -392,11 +397,42 @@ def diagnose(
         if deadline is not None:
             log.info("discovery: %.0f s of the diagnosis' budget left", max(0.0, deadline - time.perf_counter()))
         found = discovery.discover(ladder.rankings[-1], train, validation, deadline, complete=complete)
+        if ladder.added and not (found.recommended and found.discovered is not None):
+            found = _against_stand_ins(discovery, ladder, found, train, validation, deadline)
         if probes is not None:
             probes = probes.with_discovery(found)
     first = channels[0]
     return Diagnosis(ladder, first.residuals, first.by_input, first.by_output, hybrids, validation, found, channels,
                      probes)
+
+
+def _against_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discovery, train: list[Record],
+                       validation: list[Record], deadline: float | None) -> Discovery:
+    """Discovery on the physics alone, competing with the effects the ladder added (module docstring, step 5): its
+    form replaces them where the rule recommends it on the physics, the ladder's last rung does not beat it by the
+    rule, and it has fewer fitted parameters (the simpler model); else ``found``, its reason saying what the form
+    on the physics alone was and why it was not kept."""
+    base = ladder.steps[0]
+    log.info("discovery on %s alone, against the ladder's %s", base.name, ", ".join(ladder.added))
+    alone = discovery.discover(ladder.rankings[0], train, validation, deadline)
+    form, final, rule = alone.discovered, ladder.final, ladder.rankings[-1].rule
+    if not alone.recommended or form is None:
+        note = f"on {base.name} alone, discovery found no form to replace the ladder's effects ({alone.reason})"
+        return replace(found, reason=f"{found.reason}; {note}")
+    sizes = len(form.estimate.parameters), len(final.estimate.parameters)
+    if sizes[0] < sizes[1] and not rule.accepts(form, final):
+        gain, share = form.criterion - final.criterion, 1 - final.nrmse_validation / form.nrmse_validation
+        reason = (f"on {base.name} alone: {alone.reason}; the ladder's {', '.join(ladder.added)} ({sizes[1]} fitted "
+                  f"parameters, validation {100 * final.nrmse_validation:.2f} %) do not beat it by the rule (they "
+                  f"change the criterion by {gain:+.1f} and the validation mismatch by {100 * share:.1f} %; needed more "
+                  f"than {rule.threshold:g} and {100 * rule.min_share:g} %), and it has {sizes[0]}: the simpler model "
+                  f"is kept, and the ladder's effects stood in for it")
+        return replace(alone, reason=reason, replaces=list(ladder.added))
+    why = f"it has {sizes[0]} fitted parameters against {sizes[1]}" if sizes[0] >= sizes[1] else \
+        "the ladder's last rung beats it by the rule"
+    note = (f"on {base.name} alone, discovery found {alone.text} (validation {100 * form.nrmse_validation:.2f} %), "
+            f"not kept over the ladder's effects: {why}")
+    return replace(found, reason=f"{found.reason}; {note}")
 
 
 def _stages(ranker: Ranker | None, discovery: Discoverer | None, legacy: dict) -> tuple[Ranker, Discoverer | None]:

@@ -43,6 +43,8 @@ class ModelScore:
     interval: dict[str, tuple[float, float]] = field(default_factory=dict, repr=False)
     #: the fit scored (:class:`~torchpaml.PhysicsEstimate`): its residual and Jacobian start a ranking on this model
     estimate: PhysicsEstimate | None = field(default=None, repr=False)
+    #: the validation samples the criterion counts (``0``: not given)
+    samples: int = 0
 
     @property
     def fitted(self) -> FittedModel:
@@ -96,6 +98,10 @@ class EffectEvidence:
     undecided: float | None = None
     seconds: float | None = None
     acting: float = 1.0
+    #: the effect's own states (:attr:`~torchpaml.AbstractEffect.own_states`), and whether it is generic
+    #: (:attr:`~torchpaml.AbstractEffect.generic`): the simpler-effect rule (:mod:`~torchpaml._diagnostics.ranking.occam`)
+    states: int = 0
+    generic: bool = False
 
 
 @dataclass
@@ -114,6 +120,9 @@ class Ranking:
     #: the seconds of the rung's fit: of the physics on the first rung; on the next ones of the refit that found the
     #: added effect and of the fit from its optimum (the yardstick of the refits on this rung)
     fit_seconds: float | None = None
+    #: why the first entry stands before a candidate of a lower criterion (the simpler-effect rule,
+    #: :mod:`~torchpaml._diagnostics.ranking.occam`); ``None`` where the rule had no two kinds to weigh
+    simpler: str | None = None
 
     @property
     def recommended(self) -> EffectEvidence | None:

@@ -84,9 +84,11 @@ def limit_of(figures: LimitFigures) -> tuple[str, dict[str, float], str]:
         evidence["with_input_residual"] = figures.with_residual
         removed = 1 - figures.with_residual / e
         responds = removed >= MIN_REMOVED
-        floor += (f"; an input-driven residual (the Chebyshev-Hammerstein model, fitted on training) removes "
-                  f"{100 * removed:.3g} % of it ({figures.with_residual:.3g} {unit}; a response to the input: at "
-                  f"least {100 * MIN_REMOVED:g} %)")
+        change = f"removes {100 * removed:.3g} % of it" if removed >= 0 else \
+            f"removes none of it (it grows by {-100 * removed:.3g} %)"
+        floor += (f"; an input-driven residual (the Chebyshev-Hammerstein model, fitted on training) {change} "
+                  f"({figures.with_residual:.3g} {unit}; a response to the input: at least {100 * MIN_REMOVED:g} % "
+                  f"removed)")
     if figures.probe is not None:
         place, fitted, gain = figures.probe
         evidence["probe_gain"] = gain

@@ -78,6 +78,10 @@ class AbstractEffect(Rebuildable, nn.Module):
     #: direction at 0 is blind to it, and which the effects fitted in its place hide (a sensor that reads only the
     #: magnitude leaves the fitted linear physics almost no gain and a constant offset); ``None``: none
     far_strength: float | None = None
+    #: a generic, flexible effect (a latent state, an extra mode, a quadratic sensor or input map, a saturation): it
+    #: approximates almost any small mismatch, so it is a place more than physics. The ranking keeps it only where it
+    #: beats every accepted physical candidate by the rule itself (:mod:`~torchpaml._diagnostics.ranking.occam`)
+    generic: bool = False
 
     def __deepcopy__(self, memo: dict) -> AbstractEffect:
         """A copy that reads its own parameter values (:func:`~torchpaml._parameters.copied_with_own_parametrizations`)."""

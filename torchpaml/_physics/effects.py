@@ -160,6 +160,7 @@ class InputSaturation(AbstractEffect):
     r"""Actuator saturation, $\tilde u = \tanh(s u)/s = u_{\max}\tanh(u/u_{\max})$ with $s = 1/u_{\max}$."""
 
     name, equation = "input_saturation", "u -> umax*tanh(u/umax)"
+    generic = True  # a place more than physics: the simpler-effect rule (ranking.occam)
 
     def __init__(self, s: float = 0.0, *, learn=("s",)):
         super().__init__()
@@ -174,6 +175,7 @@ class OutputSaturation(AbstractEffect):
     r"""Sensor saturation, $y = \tanh(s\,y_{\text{base}})/s = y_{\max}\tanh(y_{\text{base}}/y_{\max})$."""
 
     name, equation = "output_saturation", "y -> ymax*tanh(y/ymax)"
+    generic = True  # a place more than physics: the simpler-effect rule (ranking.occam)
 
     def __init__(self, s: float = 0.0, *, learn=("s",)):
         super().__init__()

@@ -222,6 +222,7 @@ class LatentState(AbstractEffect):
     """
 
     name = "latent_state"
+    generic = True  # a place more than physics: the simpler-effect rule (ranking.occam)
     equation = "u -> u + g*z, z' = lam*(u - z)"
     own_states = (EffectState("z", "[u]", 0.0, "the input's slow memory"),)
 

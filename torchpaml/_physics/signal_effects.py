@@ -99,6 +99,7 @@ class QuadraticSensor(AbstractEffect):
     r"""A sensor's calibration curve bent to one side, $y = h + a\,h^2$. ``a`` (1/[y]) is the strength."""
 
     name, equation = "quadratic_sensor", "y -> y + a*y^2"
+    generic = True  # a place more than physics: the simpler-effect rule (ranking.occam)
 
     def __init__(self, a: float = 0.0, *, learn=("a",)):
         super().__init__()
@@ -116,6 +117,7 @@ class QuadraticInput(AbstractEffect):
     strength. For physics with one input."""
 
     name, equation = "quadratic_input", "u -> u + b*u^2"
+    generic = True  # a place more than physics: the simpler-effect rule (ranking.occam)
 
     def __init__(self, b: float = 0.0, *, learn=("b",)):
         super().__init__()
@@ -171,6 +173,7 @@ class ExtraMode(AbstractEffect):
     """
 
     name = "extra_mode"
+    generic = True  # a place more than physics: the simpler-effect rule (ranking.occam)
     equation = "y = h + q, q'' = g*u - 2*zeta_m*omega_m*q' - omega_m^2*q"
     own_states = (EffectState("q", "[y]", 0.0, "the mode's deflection at the output"),
                   EffectState("q_dot", "[y]/s", 0.0, "its rate"))

@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+from torchpaml._diagnostics.ranking.occam import KINDS, kind
+
 if TYPE_CHECKING:
     from torchpaml._diagnostics import (AmplitudeBins, Diagnosis, Discovery, EffectEvidence, HybridScore, Ladder,
                                         MismatchProbes)
@@ -32,20 +34,22 @@ def evidence_to_dict(evidence: EffectEvidence) -> dict:
         "improvement": evidence.improvement, "parameters": {} if refit is None else refit.parameters,
         "uncertainty": {} if refit is None else _errors(refit.uncertainty), "unphysical": evidence.unphysical,
         "failure": evidence.failure, "refit_reason": evidence.refit_reason, "undecided": evidence.undecided,
-        "acting": evidence.acting,
+        "acting": evidence.acting, "kind": KINDS[kind(evidence)],
     }
 
 
 def ladder_to_dicts(ladder: Ladder) -> list[dict]:
     """One dict per rung of the ladder (``solver``: the method the rung was fitted and scored with, ``"Exact"``,
     ``"RK4"`` or ``"TRBDF2"``; ``substeps``: its steps per sample interval, 1 on the exact path; ``fit_over_budget``:
-    the seconds after which its fit stopped over its budget, the rung keeping its refit's parameters, else null)."""
+    the seconds after which its fit stopped over its budget, the rung keeping its refit's parameters, else null;
+    ``simpler``: how the simpler-effect rule weighed the added effect against the other kinds the rule accepted,
+    :mod:`~torchpaml._diagnostics.ranking.occam`, else null)."""
     return [
         {"model": s.name, "equation": s.equation, "added": None if i == 0 else ladder.added[i - 1],
          "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
          "parameters": s.parameters, "uncertainty": _errors(s.uncertainty), "identifiability": s.warning,
          "fit_over_budget": ladder.rankings[i].fit_over_budget if i < len(ladder.rankings) else None,
-         **_solver(s.solver)}
+         "simpler": None if i == 0 else ladder.rankings[i - 1].simpler, **_solver(s.solver)}
         for i, s in enumerate(ladder.steps)
     ]
 
@@ -110,6 +114,7 @@ def discovery_to_dict(discovery: Discovery) -> dict:
         "effect": None if discovery.effect is None else discovery.effect.to_config(),
         "undecided": discovery.undecided,
         "searched": discovery.searched,
+        "replaces": discovery.replaces,
     }
 
 

@@ -26,6 +26,8 @@ def ranking_table(ranking: Ranking) -> str:
             f"validation {100 * ranking.baseline.nrmse_validation:.2f} %")
     if ranking.skipped:
         head += "\nskipped (do not apply): " + "; ".join(f"{k}: {v}" for k, v in ranking.skipped.items())
+    if ranking.simpler:
+        head += f"\n{ranking.simpler}"
     lines = [head, "",
              f"| rank | effect | score | validation % | Δ{ranking.rule.criterion.upper()} | parameters | refit |",
              "|---|---|---|---|---|---|---|"]

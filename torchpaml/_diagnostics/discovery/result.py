@@ -80,6 +80,9 @@ class Discovery:
     samples: dict[str, torch.Tensor] = field(repr=False)
     undecided: list[str] = field(default_factory=list)
     searched: bool = True
+    #: the ladder's effects this form, found on the physics alone, replaces: they stood in for it
+    #: (:func:`~torchpaml._diagnostics.diagnosis.diagnose`, step 4); empty where it extends the last rung
+    replaces: list[str] = field(default_factory=list)
 
     @property
     def expression(self) -> str | dict[str, str]:

@@ -12,6 +12,7 @@ import torch
 
 from torchpaml._budget import REFIT_BUDGET, RUNG_FIT_BUDGET, Budget
 from torchpaml._data import Record
+from torchpaml._diagnostics.ranking.occam import KINDS, kind, simpler_alternatives, simpler_first
 from torchpaml._diagnostics.ranking.steps import applicable, refit_shortlist, rung_fit, scored
 from torchpaml._diagnostics.ranking.refits import Refits, free_shape
 from torchpaml._diagnostics.ranking.scoring import as_records, score_model
@@ -126,6 +127,11 @@ class Ranker:
         refits = Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, self.max_nfev, limits)
         refit_shortlist([e for e in by_score if e.effect in extended_models], extended_models, self.shortlist, rule,
                         validation, base, refits)
+        ordered = by_criterion(entries) + [e for e in by_score if e.refit is None]
+        for entry in simpler_alternatives([e for e in ordered if e.effect in extended_models], baseline, rule):
+            entry.refit_reason = (f"refitted: the best-scored candidate {KINDS[kind(entry)]}, for the simpler-effect "
+                                  f"rule to weigh against the more complex one the rule accepts")
+            refits.run(entry, *extended_models[entry.effect])
         refitted = by_criterion(entries)
         if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
             best = refitted[0]
@@ -134,7 +140,8 @@ class Ranker:
             best.improvement = baseline.criterion - best.refit.criterion
             best.unphysical = unphysical_values(best.refit.rows())
         rest = [e for e in by_score if e.refit is None]
-        return Ranking(baseline, refitted + rest, rule, skipped, initial_state, over, seconds)
+        ordered, simpler = simpler_first(refitted + rest, baseline, rule)
+        return Ranking(baseline, ordered, rule, skipped, initial_state, over, seconds, simpler)
 
 
 def rank_missing_effects(

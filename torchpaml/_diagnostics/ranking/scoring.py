@@ -60,4 +60,4 @@ def score_model(
     return ModelScore(physics.display_name, equation, physics.physical_parameters(), fit.mismatch,
                       validation_mismatch, value, physics, dict(fit.uncertainty.std), fit.uncertainty.warning,
                       fit.initial_states, [physics.initial_state(1)[0] if x0 is None else x0 for x0 in starts],
-                      outputs, fit.solver, dict(fit.uncertainty.interval), fit)
+                      outputs, fit.solver, dict(fit.uncertainty.interval), fit, samples=n)

@@ -49,21 +49,27 @@ class SelectionRule:
 
     def value(self, sse: float, samples: int, parameters: int) -> float:
         """The criterion of a fit with sum of squared errors ``sse`` on ``samples`` samples and ``parameters`` fitted."""
-        penalty = parameters * math.log(samples) if self.criterion == "bic" else 2.0 * parameters
-        return samples * math.log(sse / samples) + penalty
+        return samples * math.log(sse / samples) + self.penalty(samples, parameters)
 
-    def why_not(self, current, candidate) -> str | None:
+    def penalty(self, samples: int, parameters: int) -> float:
+        """The criterion's charge for ``parameters`` unknowns on ``samples`` samples: $k \\ln n$ (BIC), $2k$ (AIC)."""
+        return parameters * math.log(samples) if self.criterion == "bic" else 2.0 * parameters
+
+    def why_not(self, current, candidate, extra: int = 0) -> str | None:
         """Why ``candidate`` is not accepted over ``current`` (both :class:`~torchpaml.ModelScore`),
-        or ``None`` when it is."""
+        or ``None`` when it is. ``extra``: more unknowns the candidate has beyond its fitted parameters (an effect's
+        own states), each charged as one more parameter in its criterion (``candidate.samples`` samples)."""
         if candidate.nrmse_train > current.nrmse_train * (1 + TRAINING_SLACK):
             return "its refit ended above the current model's training mismatch (a failed optimisation)"
-        gain = current.criterion - candidate.criterion
+        charge = self.penalty(candidate.samples, extra) if extra and candidate.samples else 0.0
+        gain = current.criterion - candidate.criterion - charge
         share = 1 - candidate.nrmse_validation / current.nrmse_validation
         if gain <= self.threshold or share < self.min_share:
-            return (f"it changes the criterion by {gain:+.1f} (needed more than {self.threshold:g}) and the validation "
-                    f"mismatch by {100 * share:.1f} % (needed {100 * self.min_share:g} %)")
+            counted = f", {extra} own state(s) counted as parameters" if charge else ""
+            return (f"it changes the criterion by {gain:+.1f}{counted} (needed more than {self.threshold:g}) and the "
+                    f"validation mismatch by {100 * share:.1f} % (needed {100 * self.min_share:g} %)")
         return None
 
-    def accepts(self, current, candidate) -> bool:
-        """Whether ``candidate`` is better than ``current`` by this rule."""
-        return self.why_not(current, candidate) is None
+    def accepts(self, current, candidate, extra: int = 0) -> bool:
+        """Whether ``candidate`` is better than ``current`` by this rule (``extra``: :meth:`why_not`)."""
+        return self.why_not(current, candidate, extra) is None

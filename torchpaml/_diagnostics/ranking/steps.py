@@ -37,7 +37,11 @@ r"""Which effect is missing: rank candidate effects by a first-order score, then
    - its refitted parameters lie in their declared physical ranges (``physical`` of
      :class:`~torchpaml.PhysicalParameter`: a Coulomb level or a drag coefficient >= 0, a
      share of sin x in [0, 1]). An unphysical refit is flagged in its evidence and passed over.
-   Candidates outside the shortlist follow, by score, without a refit.
+   Among the accepted candidates, **the simpler effect wins** (:mod:`~torchpaml._diagnostics.ranking.occam`): an
+   effect with its own states, or a generic one, comes first only where the rule accepts it over the best accepted
+   candidate of each simpler kind, its extra states charged as parameters; where the best accepted refit is of a
+   more complex kind, the best-scored candidate of each simpler kind is refitted too, so that the rule can weigh
+   it. Candidates outside the shortlist follow, by score, without a refit.
 """
 
 from __future__ import annotations
@@ -167,7 +171,8 @@ def scored(base: AbstractPhysics, candidates: list[AbstractEffect], train: list[
                                           refit_reason="not refitted: not scored"))
             continue
         extended, (score, order, start, move, acting) = best
-        entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start, acting=acting))
+        entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start, acting=acting,
+                                      states=len(candidate.own_states), generic=candidate.generic))
         bounds = {f"{candidate.name}.{name}": limits for name, limits in candidate.bounds(train).items()
                   if f"{candidate.name}.{name}" in extended.learnable_names()}
         extended_models[candidate.name] = (extended, strength, move, bounds)
