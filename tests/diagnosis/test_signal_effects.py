@@ -34,3 +34,18 @@ def test_behind_a_nonlinearity_a_sensor_lag_is_told_from_an_actuator_lag(name):
     assert best.refit.nrmse_validation < 1.5 * floor, ranking_table(ranking)
     other = ranking.entries[1]
     assert other.refit.nrmse_validation > 1.5 * best.refit.nrmse_validation, ranking_table(ranking)
+
+
+def test_on_linear_physics_the_two_lags_are_named_as_one():
+    """A hidden sensor lag on the linear oscillator: an actuator lag gives the same output (linear filters commute).
+    With a shortlist of one, the twin (the same first-order score) is refitted all the same, and the ranking names
+    both: the first in the library's order, the other as ``equivalent``."""
+    torch.manual_seed(0)
+    system = (truth() + SensorLag()).assign(**{"sensor_lag.tau": 0.3})
+    train, validation, floor = records(system, 1.5)
+    ranking = rank_missing_effects(physics(), [InputLag(), SensorLag()], train, validation, shortlist=1)
+    first, second = ranking.entries[:2]
+    assert {first.effect, second.effect} == {"input_lag", "sensor_lag"} and second.refit is not None
+    assert first.effect == "input_lag" and ranking.equivalent == ["sensor_lag"], ranking_table(ranking)
+    assert "its first-order score equals input_lag's" in second.refit_reason
+    assert first.refit.nrmse_validation < 1.5 * floor

@@ -59,7 +59,7 @@ from torchpaml._diagnostics.discovery.result import Discovery
 from torchpaml._diagnostics.mismatch.prober import Prober
 from torchpaml._diagnostics.mismatch.result import MismatchProbes
 from torchpaml._diagnostics.ranking.ladder import Ladder, model_ladder
-from torchpaml._diagnostics.ranking.ranker import Ranker
+from torchpaml._diagnostics.ranking.ranker import TIE, Ranker
 from torchpaml._diagnostics.results import ModelScore, Ranking
 from torchpaml._diagnostics.ranking.scoring import as_records
 from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, check_budget
@@ -200,7 +200,7 @@ class Diagnosis:
                 + "".join(f"; unphysical: {note}" for note in best.unphysical) + ")")
             found = (f"no missing effect found among {len(self.ranking.entries)} candidates{detail}. Validation "
                      f"mismatch {100 * base.nrmse_validation:.2f} %.")
-        verdict = f"{found}{self._per_channel()} Chebyshev residual on the final model: " \
+        verdict = f"{found}{self._per_channel()}{self._equivalents()} Chebyshev residual on the final model: " \
                   f"{self.hybrids[-1].adequacy.message.rstrip('.')}."
         stopped = [ranking for ranking in self.ladder.rankings if ranking.fit_over_budget is not None]
         if stopped:
@@ -226,6 +226,15 @@ class Diagnosis:
             verdict += " " + self.probes.describe()
         return verdict
 
+
+    def _equivalents(self) -> str:
+        """For each added effect that other candidates match (``Ranking.equivalent``): that the records cannot tell
+        them apart on this physics, and what record would."""
+        return "".join(
+            f" {effect} and {', '.join(ranking.equivalent)} give the same output on this physics (their criteria "
+            f"within {TIE:g}): these records cannot tell them apart, and the ladder names the first in the library's "
+            f"order; a record of a signal between their places (the actuator's output, the quantity the sensor reads) "
+            f"would." for effect, ranking in zip(self.ladder.added, self.ladder.rankings) if ranking.equivalent)
 
     def _per_channel(self) -> str:
         """With several output channels, each one's validation mismatch and where the missing effect shows most."""

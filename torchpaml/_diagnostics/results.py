@@ -123,6 +123,9 @@ class Ranking:
     #: why the first entry stands before a candidate of a lower criterion (the simpler-effect rule,
     #: :mod:`~torchpaml._diagnostics.ranking.occam`); ``None`` where the rule had no two kinds to weigh
     simpler: str | None = None
+    #: the refitted candidates that give the first one's evidence (criteria within ``ranker.TIE``): the records
+    #: cannot tell them apart on this physics (linear filters commute: an actuator and a sensor lag)
+    equivalent: list[str] = field(default_factory=list)
 
     @property
     def recommended(self) -> EffectEvidence | None:

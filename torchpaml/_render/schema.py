@@ -43,13 +43,15 @@ def ladder_to_dicts(ladder: Ladder) -> list[dict]:
     ``"RK4"`` or ``"TRBDF2"``; ``substeps``: its steps per sample interval, 1 on the exact path; ``fit_over_budget``:
     the seconds after which its fit stopped over its budget, the rung keeping its refit's parameters, else null;
     ``simpler``: how the simpler-effect rule weighed the added effect against the other kinds the rule accepted,
-    :mod:`~torchpaml._diagnostics.ranking.occam`, else null)."""
+    :mod:`~torchpaml._diagnostics.ranking.occam`, else null; ``equivalent``: the candidates that give the added
+    effect's evidence on this physics, which the records cannot tell from it)."""
     return [
         {"model": s.name, "equation": s.equation, "added": None if i == 0 else ladder.added[i - 1],
          "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
          "parameters": s.parameters, "uncertainty": _errors(s.uncertainty), "identifiability": s.warning,
          "fit_over_budget": ladder.rankings[i].fit_over_budget if i < len(ladder.rankings) else None,
-         "simpler": None if i == 0 else ladder.rankings[i - 1].simpler, **_solver(s.solver)}
+         "simpler": None if i == 0 else ladder.rankings[i - 1].simpler,
+         "equivalent": [] if i == 0 else ladder.rankings[i - 1].equivalent, **_solver(s.solver)}
         for i, s in enumerate(ladder.steps)
     ]
 

@@ -28,6 +28,8 @@ def ranking_table(ranking: Ranking) -> str:
         head += "\nskipped (do not apply): " + "; ".join(f"{k}: {v}" for k, v in ranking.skipped.items())
     if ranking.simpler:
         head += f"\n{ranking.simpler}"
+    if ranking.equivalent:
+        head += f"\nthe same evidence as the first (the records cannot tell them apart): {', '.join(ranking.equivalent)}"
     lines = [head, "",
              f"| rank | effect | score | validation % | Δ{ranking.rule.criterion.upper()} | parameters | refit |",
              "|---|---|---|---|---|---|---|"]

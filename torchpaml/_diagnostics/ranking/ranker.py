@@ -31,6 +31,8 @@ log = logging.getLogger("torchpaml._diagnostics.ranking.steps")
 
 #: Refit criteria within this much of each other are the same evidence (a likelihood ratio within 1 %).
 TIE = 0.01
+#: First-order scores within this relative distance are the same first-order output (twins).
+TWIN = 1e-6
 
 
 def by_criterion(entries: list) -> list:
@@ -127,11 +129,7 @@ class Ranker:
         refits = Refits(base.display_name, train, validation, fit, baseline, rule, initial_state, self.max_nfev, limits)
         refit_shortlist([e for e in by_score if e.effect in extended_models], extended_models, self.shortlist, rule,
                         validation, base, refits)
-        ordered = by_criterion(entries) + [e for e in by_score if e.refit is None]
-        for entry in simpler_alternatives([e for e in ordered if e.effect in extended_models], baseline, rule):
-            entry.refit_reason = (f"refitted: the best-scored candidate {KINDS[kind(entry)]}, for the simpler-effect "
-                                  f"rule to weigh against the more complex one the rule accepts")
-            refits.run(entry, *extended_models[entry.effect])
+        weigh_beyond_the_shortlist(entries, by_score, extended_models, baseline, rule, refits)
         refitted = by_criterion(entries)
         if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
             best = refitted[0]
@@ -141,7 +139,38 @@ class Ranker:
             best.unphysical = unphysical_values(best.refit.rows())
         rest = [e for e in by_score if e.refit is None]
         ordered, simpler = simpler_first(refitted + rest, baseline, rule)
-        return Ranking(baseline, ordered, rule, skipped, initial_state, over, seconds, simpler)
+        return Ranking(baseline, ordered, rule, skipped, initial_state, over, seconds, simpler, equivalents(ordered))
+
+
+def weigh_beyond_the_shortlist(entries: list[EffectEvidence], by_score: list[EffectEvidence], extended_models: dict,
+                               baseline, rule: SelectionRule, refits: Refits) -> None:
+    """Refit what the decision must weigh beyond the shortlist: the best-scored candidate of each simpler kind
+    (:func:`~torchpaml._diagnostics.ranking.occam.simpler_alternatives`), then the **twins** of the leading
+    candidate, those whose first-order score equals its own to :data:`TWIN` (the same first-order output: an
+    actuator and a sensor lag on linear physics), for :func:`equivalents` to say whether they are the same."""
+    def in_order() -> list[EffectEvidence]:
+        return [e for e in by_criterion(entries) + [e for e in by_score if e.refit is None] if e.effect in extended_models]
+
+    for entry in simpler_alternatives(in_order(), baseline, rule):
+        entry.refit_reason = (f"refitted: the best-scored candidate {KINDS[kind(entry)]}, for the simpler-effect "
+                              f"rule to weigh against the more complex one the rule accepts")
+        refits.run(entry, *extended_models[entry.effect])
+    lead = simpler_first(in_order(), baseline, rule)[0][0] if in_order() else None
+    if lead is None or lead.refit is None:
+        return
+    for entry in (e for e in in_order() if e.refit is None and e.failure is None and e.undecided is None):
+        if math.isclose(entry.score, lead.score, rel_tol=TWIN):
+            entry.refit_reason = (f"refitted: its first-order score equals {lead.effect}'s (the same first-order "
+                                  "output), for the ranking to say whether the two are the same")
+            refits.run(entry, *extended_models[entry.effect])
+
+
+def equivalents(ordered: list[EffectEvidence]) -> list[str]:
+    """The refitted candidates whose criterion is within :data:`TIE` of the first's: the same evidence, so the
+    records cannot tell them from it (they rank in the library's order, :func:`by_criterion`)."""
+    lead = ordered[0] if ordered and ordered[0].refit is not None else None
+    return [] if lead is None else [e.effect for e in ordered[1:] if e.refit is not None and not e.unphysical
+                                    and abs(e.refit.criterion - lead.refit.criterion) <= TIE]
 
 
 def rank_missing_effects(
