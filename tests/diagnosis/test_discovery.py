@@ -18,6 +18,7 @@ from torchpaml import (
     CoulombFriction,
     CubicStiffness,
     Discoverer,
+    Oscillator,
     Pendulum,
     PhysicalParameter,
     Positive,
@@ -288,3 +289,23 @@ def test_a_form_outside_the_library_replaces_the_library_effects_that_stood_in_f
     assert set(terms) == {"v**3"} and terms["v**3"] == pytest.approx(-0.6, rel=0.05), content
     assert diagnosis.final is diagnosis.discovery.discovered and diagnosis.final.nrmse_validation < 1.2 * floor
     assert "stood in for it" in diagnosis.verdict and "Last rung:" in diagnosis.verdict
+
+
+def test_a_form_found_on_top_of_stand_ins_is_refitted_alone_and_replaces_them():
+    """The linear oscillator with an amplitude-dependent damping (-x**2 v; 1 % noise, 4 001 samples; issue 56's case):
+    the ladder adds stand-ins (measured: quadratic damping and an output saturation, 3.91 % against a 1 % floor), and
+    discovery on its last rung finds x**2 v. Refitted on the physics alone the form reaches the floor with fewer
+    parameters, and the stand-ins do not beat it by the rule: the final model is the physics and the one term."""
+    truth = run.truth(HiddenForce(-1.0, lambda x, v, u: x**2 * v))
+    train = Simulated(truth, "pseudorandom", 1.0, [0], 200.0, 0.05, noise=0.01).experiments()
+    validation = Simulated(truth, "multisine", 1.0, [1], 200.0, 0.05, noise=0.01).experiments()
+    clean = Simulated(truth, "multisine", 1.0, [1], 200.0, 0.05).experiments()[0]
+    floor = mismatch(validation[0].y, clean.y)
+    start = Oscillator(zeta=0.2, omega0=2.0, gain=4.0)  # the user's linear physics, at the device's values
+    diagnosis = diagnose(start, default_effects(), train, validation, discovery=Discoverer())
+    content = discovery_to_dict(diagnosis.discovery)
+    assert diagnosis.ladder.added and content["replaces"] == diagnosis.ladder.added, diagnosis.verdict
+    terms = {t["term"]: t["coefficient"] for t in content["terms"]}
+    assert set(terms) == {"v*x**2"} and terms["v*x**2"] == pytest.approx(-1.0, rel=0.05), content
+    assert set(diagnosis.final.model.effects) == {"discovered"}
+    assert diagnosis.final.nrmse_validation < 1.2 * floor, diagnosis.verdict

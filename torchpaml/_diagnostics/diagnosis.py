@@ -54,6 +54,7 @@ from torchpaml._data import Record
 from torchpaml._diagnostics.analysis.adequacy import Adequacy, assess_adequacy
 from torchpaml._diagnostics.analysis.channels import ChannelScore, channel_scores, shows_most
 from torchpaml._diagnostics.analysis.noise_floor import noise_floor
+from torchpaml._diagnostics.discovery.closed_form import fit_closed_form
 from torchpaml._diagnostics.discovery.discoverer import Discoverer
 from torchpaml._diagnostics.discovery.result import Discovery
 from torchpaml._diagnostics.mismatch.prober import Prober
@@ -61,11 +62,11 @@ from torchpaml._diagnostics.mismatch.result import MismatchProbes
 from torchpaml._diagnostics.ranking.ladder import Ladder, model_ladder
 from torchpaml._diagnostics.ranking.ranker import TIE, Ranker
 from torchpaml._diagnostics.results import ModelScore, Ranking
-from torchpaml._diagnostics.ranking.scoring import as_records
-from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, check_budget
+from torchpaml._diagnostics.ranking.scoring import as_records, score_model
+from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, OverBudget, check_budget
 from torchpaml._diagnostics.analysis.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.analysis.validity import AmplitudeBins
-from torchpaml._errors import ConfigurationError, DataError
+from torchpaml._errors import ConfigurationError, DataError, SimulationError
 from torchpaml._grid import uniform_step
 from torchpaml._data.simulation import simulate_record
 from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein, joined_in_time, per_record
@@ -406,7 +407,9 @@ def diagnose(
         if deadline is not None:
             log.info("discovery: %.0f s of the diagnosis' budget left", max(0.0, deadline - time.perf_counter()))
         found = discovery.discover(ladder.rankings[-1], train, validation, deadline, complete=complete)
-        if ladder.added and not (found.recommended and found.discovered is not None):
+        if ladder.added and found.recommended and found.discovered is not None:
+            found = _form_without_stand_ins(discovery, ladder, found, train, validation, deadline)
+        elif ladder.added:
             found = _against_stand_ins(discovery, ladder, found, train, validation, deadline)
         if probes is not None:
             probes = probes.with_discovery(found)
@@ -442,6 +445,43 @@ def _against_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discovery, 
     note = (f"on {base.name} alone, discovery found {alone.text} (validation {100 * form.nrmse_validation:.2f} %), "
             f"not kept over the ladder's effects: {why}")
     return replace(found, reason=f"{found.reason}; {note}")
+
+
+def _form_without_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discovery, train: list[Record],
+                            validation: list[Record], deadline: float | None) -> Discovery:
+    """The form discovered on the ladder's last rung, refitted on the physics alone (module docstring, step 5): it
+    replaces the ladder's effects where the last rung with the form does not beat it by the rule and it has fewer
+    fitted parameters; else ``found``. A form with a width (a smoothed sign) keeps its rung: its width's range is
+    the search's."""
+    effect, base, rule = found.effect, ladder.steps[0], ladder.rankings[-1].rule
+    if effect.width_names:
+        return found
+    pairs = [(equation, term) for term, _, equation in effect.terms_and_coefficients()]
+    coefficients = [c for _, c, _ in effect.terms_and_coefficients()]
+    budget = Budget(f"discovery: {found.text} on {base.name} alone", evaluations=REFIT_BUDGET * discovery.max_nfev,
+                    deadline=math.inf if deadline is None else deadline)
+    log.info("discovery: refitting %s on %s alone, without the ladder's %s", found.text, base.name,
+             ", ".join(ladder.added))
+    try:
+        fitted = fit_closed_form(base.model, pairs, coefficients, {}, train, discovery.max_nfev,
+                                 ladder.rankings[0].initial_state, budget, base.solver)
+        alone = None if fitted is None else score_model(*fitted, validation, rule, ladder.rankings[0].initial_state)
+    except (OverBudget, SimulationError):
+        alone = None
+    if alone is None:
+        return found
+    sizes = len(alone.estimate.parameters), len(found.discovered.estimate.parameters)
+    if sizes[0] >= sizes[1] or rule.accepts(alone, found.discovered):
+        return found
+    gain = alone.criterion - found.discovered.criterion
+    share = 1 - found.discovered.nrmse_validation / alone.nrmse_validation
+    reason = (f"{found.reason}; refitted on {base.name} alone it reaches {100 * alone.nrmse_validation:.2f} % on "
+              f"validation, and the last rung's {', '.join(ladder.added)} with it ({sizes[1]} fitted parameters) do "
+              f"not beat it by the rule (they change the criterion by {gain:+.1f} and the validation mismatch by "
+              f"{100 * share:.1f} %; needed more than {rule.threshold:g} and {100 * rule.min_share:g} %), with "
+              f"{sizes[0]}: the simpler model is kept, and the ladder's effects stood in for the form")
+    return replace(found, physics=base, discovered=alone, effect=alone.model.effects["discovered"], reason=reason,
+                   replaces=list(ladder.added))
 
 
 def _stages(ranker: Ranker | None, discovery: Discoverer | None, legacy: dict) -> tuple[Ranker, Discoverer | None]:
