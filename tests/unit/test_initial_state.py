@@ -56,6 +56,6 @@ def test_starting_guesses_of_the_initial_states_go_to_the_first_rung_and_the_lad
     truth = Oscillator(0.2, 2.0, 4.0, learn=()) + CubicStiffness(1.5)
     train, validation = _record(truth), _record(truth, seed=1)
     diagnosis = diagnose(Oscillator(0.4, 1.8, 3.0, learn=("zeta", "omega0", "gain")), [CubicStiffness()], train,
-                         validation, initial_state=Estimate(), start_states=[X0[0]])
+                         validation, initial_state=Estimate(), start_states=[X0[0]], prober=None)
     assert diagnosis.ladder.added == ["cubic_stiffness"]
     assert diagnosis.ladder.final.train_states[0] == pytest.approx(X0[0], abs=1e-5)
