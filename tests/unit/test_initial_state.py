@@ -59,3 +59,31 @@ def test_starting_guesses_of_the_initial_states_go_to_the_first_rung_and_the_lad
                          validation, initial_state=Estimate(), start_states=[X0[0]], prober=None)
     assert diagnosis.ladder.added == ["cubic_stiffness"]
     assert diagnosis.ladder.final.train_states[0] == pytest.approx(X0[0], abs=1e-5)
+
+
+@pytest.mark.parametrize("start, gains", [(X0, True), (None, False)], ids=["away from rest", "at rest"])
+def test_the_initial_state_probe_measures_its_gain_on_samples_its_fit_did_not_see(start, gains):
+    """The probe estimates each validation record's state on its first 10 % and scores the rest. A record that
+    starts away from rest gains there (its transient is the error); one that starts at rest gains nothing."""
+    from torchpaml import SelectionRule
+    from torchpaml._diagnostics.mismatch.prober import START_WINDOW, _held_out_gain
+    from torchpaml._diagnostics.ranking.scoring import score_model
+
+    truth = Oscillator(0.2, 2.0, 4.0, learn=())
+    t = time_grid(10.0, 0.02)
+    u = pseudorandom(t, 1.0, seed=1)
+    with torch.no_grad():
+        clean = truth(t, u, start)[0]
+    noisy = clean + 0.02 * clean.std() * torch.randn(clean.shape, generator=torch.Generator().manual_seed(3),
+                                                    dtype=torch.float64)
+    validation = Record(t, u[0], noisy, "validation")
+    model = Oscillator(0.2, 2.0, 4.0, learn=("zeta", "omega0", "gain"))
+    train = _record(Oscillator(0.2, 2.0, 4.0))
+    fit = fit_physics(model, train, initial_state=Estimate())
+    score = score_model(model, fit, [validation], SelectionRule())
+    held_out, gain = _held_out_gain(score, [validation])
+    assert START_WINDOW == 0.1
+    if gains:
+        assert gain > 0.5 and held_out < 0.05  # the transient was the error
+    else:  # no transient: no gain on the unseen samples (measured -1.2 %: the state fitted to the window's noise)
+        assert gain < 0.005
