@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 from torch import nn
 
@@ -68,7 +69,7 @@ ORDER, DECAY, MIN_DECAY, BANDWIDTH = 5, 1.5, 0.5, 30.0
 def _default_frequencies(order: int) -> list[float]:
     """Initial natural frequencies of the ``order // 2`` pole pairs, geometric from 1 to 6 rad/s."""
     pairs = order // 2
-    return [math.exp(v) for v in torch.linspace(0.0, math.log(6.0), max(pairs, 1)).tolist()][:pairs]
+    return [math.exp(v) for v in np.linspace(0.0, math.log(6.0), max(pairs, 1))][:pairs]
 
 
 class ChebyshevHammerstein(AbstractResidual):
