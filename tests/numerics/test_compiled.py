@@ -98,6 +98,32 @@ def test_new_parameters_need_no_new_compile_and_a_new_structure_gets_one():
     assert _relative(physics.output(quintic[:, :300], u[:, :300]), reference) < 1e-12
 
 
+class Spring(Power):
+    """:class:`Power` whose spring law is a function it was given: an attribute that is neither plain nor a tensor."""
+
+    def __init__(self, law):
+        super().__init__()
+        self.law = law
+
+    def derivative(self, t, x, u):
+        position, velocity = x.unbind(-1)
+        return state_vector([velocity, u[..., 0] - self.c * velocity - self.k * self.law(position)])
+
+
+def test_two_physics_that_differ_only_in_a_function_they_hold_get_two_forms():
+    """A user's effect that keeps its law as a function (a lambda) compiles once per function: the same class with
+    another function is another structure, never the first one's stale form."""
+    t, u = _drive()
+    cubic, odd = Spring(lambda x: x**3), Spring(lambda x: x * x.abs())
+    x0 = cubic.initial_state(2)
+    with torch.no_grad():
+        for physics in (cubic, odd):
+            states = compiled.sequential_states(physics, t, u, x0, RK4(substeps=1), "foh")
+            reference = simulate(physics, t[:300], u[:, :300], x0, solver=RK4(substeps=1, segment=300))
+            assert _relative(physics.output(states[:, :300], u[:, :300]), reference) < 1e-12
+    assert _form(cubic) is not _form(odd)
+
+
 def test_the_gradient_through_the_compiled_start_is_exact(monkeypatch):
     monkeypatch.setattr(compiled, "MIN_STEPS", 1000)
     physics = _hard()

@@ -167,16 +167,30 @@ def _source(rates: list, n: int, m: int) -> str:
     return f"#include <math.h>\n#define N_STATES {n}\n#define N_INPUTS {m}\n" + rates_function(rates) + _LOOP
 
 
+def _attribute_key(value) -> object:
+    """A module attribute as part of :func:`_signature`: a plain value by its ``repr``; anything else (a function the
+    physics calls, an object) by itself, which the key then holds, so that no other object can take its identity
+    while the form is kept; an unhashable container by its ``repr``."""
+    if isinstance(value, (bool, int, float, str, tuple, type(None))):
+        return repr(value)
+    try:
+        hash(value)
+    except TypeError:
+        return repr(value)
+    return value
+
+
 def _signature(physics: Dynamics) -> tuple:
-    """What a compiled form depends on besides the parameters' values: each module's class and plain attributes, its
-    tensors' names, types and shapes, and the values of its tensor attributes that are neither parameters nor buffers
+    """What a compiled form depends on besides the parameters' values: each module's class and attributes (plain
+    values by value, a function or another object by identity: :func:`_attribute_key`), its tensors' names, types
+    and shapes, and the values of its tensor attributes that are neither parameters nor buffers
     (the closed form holds those as numbers: a changed one needs a new compile). ``functional_call`` puts plain
     tensors in the parameters' place: that structure is another signature, left to the engine
     (:func:`_reparametrized`), and the module's own is still compiled."""
-    plain = (bool, int, float, str, tuple, type(None))
     return tuple((name, type(module).__module__, type(module).__qualname__,
-                  tuple(sorted((k, repr(v)) for k, v in vars(module).items()
-                               if not k.startswith("_") and k != "training" and isinstance(v, plain))),
+                  tuple(sorted(((k, _attribute_key(v)) for k, v in vars(module).items()
+                                if not k.startswith("_") and k != "training" and not isinstance(v, torch.Tensor)),
+                               key=lambda item: item[0])),
                   tuple((k, type(v).__name__, tuple(v.shape))
                         for k, v in (*module._parameters.items(), *module._buffers.items()) if v is not None),
                   tuple((k, tuple(v.shape), v.detach().cpu().to(torch.float64).numpy().tobytes())
