@@ -40,7 +40,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--data", type=Path, default=Path("..") / "shared" / "data",
                         help="the benchmarks' data folders, for those the registry's protocol runs "
                              "(default ../shared/data)")
-    parser.add_argument("--only", nargs="*", default=None, help=f"these benchmarks only, of {sorted(BENCHMARKS)}")
+    parser.add_argument("--only", nargs="+", action="extend", default=None,
+                        help=f"these benchmarks only, of {sorted(BENCHMARKS)} (--only a b, or --only a --only b)")
     args = parser.parse_args(argv)
     chosen = [benchmark(name) for name in args.only] if args.only else list(BENCHMARKS.values())
     for entry in chosen:

@@ -10,6 +10,7 @@ import torch
 
 from torchpaml import (ConfigurationError, CubicStiffness, Oscillator, Record, Rest, Simulated, fit_physics,
                        simulate_record)
+from torchpaml import leaderboard
 from torchpaml._data.simulation import record_states
 from torchpaml._diagnostics.ranking.scoring import score_model
 from torchpaml.leaderboard import (BENCHMARKS, Benchmark, Published, agreement_evidence, benchmark, hypothesis_entry,
@@ -148,3 +149,12 @@ def test_the_validation_agreement_compares_each_gain_with_the_test_gain_against_
     assert "best (probe: force, 1 m), gains -70.0 % on validation" in sentence
     too_few = validation_agreement(agreeing[:2], models, "test")
     assert too_few["rank_correlation"] is None and agreement_evidence(too_few, "test", "m") == ({}, "")
+
+
+def test_only_takes_names_in_one_flag_or_in_several(monkeypatch):
+    """``--only a --only b`` runs both, as ``--only a b`` does (a repeated flag replaced the first before)."""
+    ran = []
+    monkeypatch.setattr(leaderboard.subprocess, "call", lambda command: ran.append(command[1]) or 0)
+    assert leaderboard.main(["--only", "boucwen", "--only", "emps"]) == 0
+    assert leaderboard.main(["--only", "boucwen", "emps"]) == 0
+    assert ran == ["experiments/boucwen/run.py", "experiments/emps/run.py"] * 2
