@@ -63,6 +63,7 @@ from torchpaml._diagnostics.ranking.ladder import Ladder, model_ladder
 from torchpaml._diagnostics.ranking.ranker import TIE, Ranker
 from torchpaml._diagnostics.results import ModelScore, Ranking
 from torchpaml._diagnostics.ranking.scoring import as_records, score_model
+from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, OverBudget, check_budget
 from torchpaml._diagnostics.analysis.residuals import ResidualAnalysis, residual_analysis
 from torchpaml._diagnostics.analysis.validity import AmplitudeBins
@@ -431,15 +432,10 @@ def _against_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discovery, 
     if not alone.recommended or form is None:
         note = f"on {base.name} alone, discovery found no form to replace the ladder's effects ({alone.reason})"
         return replace(found, reason=f"{found.reason}; {note}")
+    kept = _simpler_kept(form, final, ladder, rule)
+    if kept is not None:
+        return replace(alone, reason=f"on {base.name} alone: {alone.reason}; {kept}", replaces=list(ladder.added))
     sizes = len(form.estimate.parameters), len(final.estimate.parameters)
-    if sizes[0] < sizes[1] and not rule.accepts(form, final):
-        gain, share = form.criterion - final.criterion, 1 - final.nrmse_validation / form.nrmse_validation
-        reason = (f"on {base.name} alone: {alone.reason}; the ladder's {', '.join(ladder.added)} ({sizes[1]} fitted "
-                  f"parameters, validation {100 * final.nrmse_validation:.2f} %) do not beat it by the rule (they "
-                  f"change the criterion by {gain:+.1f} and the validation mismatch by {100 * share:.1f} %; needed more "
-                  f"than {rule.threshold:g} and {100 * rule.min_share:g} %), and it has {sizes[0]}: the simpler model "
-                  f"is kept, and the ladder's effects stood in for it")
-        return replace(alone, reason=reason, replaces=list(ladder.added))
     why = f"it has {sizes[0]} fitted parameters against {sizes[1]}" if sizes[0] >= sizes[1] else \
         "the ladder's last rung beats it by the rule"
     note = (f"on {base.name} alone, discovery found {alone.text} (validation {100 * form.nrmse_validation:.2f} %), "
@@ -456,8 +452,8 @@ def _form_without_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discov
     effect, base, rule = found.effect, ladder.steps[0], ladder.rankings[-1].rule
     if effect.width_names:
         return found
-    pairs = [(equation, term) for term, _, equation in effect.terms_and_coefficients()]
-    coefficients = [c for _, c, _ in effect.terms_and_coefficients()]
+    terms = effect.terms_and_coefficients()
+    pairs, coefficients = [(equation, term) for term, _, equation in terms], [c for _, c, _ in terms]
     budget = Budget(f"discovery: {found.text} on {base.name} alone", evaluations=REFIT_BUDGET * discovery.max_nfev,
                     deadline=math.inf if deadline is None else deadline)
     log.info("discovery: refitting %s on %s alone, without the ladder's %s", found.text, base.name,
@@ -468,20 +464,27 @@ def _form_without_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discov
         alone = None if fitted is None else score_model(*fitted, validation, rule, ladder.rankings[0].initial_state)
     except (OverBudget, SimulationError):
         alone = None
-    if alone is None:
+    kept = None if alone is None else _simpler_kept(alone, found.discovered, ladder, rule)
+    if kept is None:
         return found
-    sizes = len(alone.estimate.parameters), len(found.discovered.estimate.parameters)
-    if sizes[0] >= sizes[1] or rule.accepts(alone, found.discovered):
-        return found
-    gain = alone.criterion - found.discovered.criterion
-    share = 1 - found.discovered.nrmse_validation / alone.nrmse_validation
-    reason = (f"{found.reason}; refitted on {base.name} alone it reaches {100 * alone.nrmse_validation:.2f} % on "
-              f"validation, and the last rung's {', '.join(ladder.added)} with it ({sizes[1]} fitted parameters) do "
-              f"not beat it by the rule (they change the criterion by {gain:+.1f} and the validation mismatch by "
-              f"{100 * share:.1f} %; needed more than {rule.threshold:g} and {100 * rule.min_share:g} %), with "
-              f"{sizes[0]}: the simpler model is kept, and the ladder's effects stood in for the form")
+    reason = f"{found.reason}; refitted on {base.name} alone, {kept}"
     return replace(found, physics=base, discovered=alone, effect=alone.model.effects["discovered"], reason=reason,
                    replaces=list(ladder.added))
+
+
+def _simpler_kept(simple: ModelScore, rich: ModelScore, ladder: Ladder, rule: SelectionRule) -> str | None:
+    """Why ``simple`` (the physics with a discovered form) is kept over ``rich`` (the ladder's effects, with or
+    without the form): it has fewer fitted parameters and ``rich`` does not beat it by ``rule``; ``None`` where it
+    is not kept."""
+    sizes = len(simple.estimate.parameters), len(rich.estimate.parameters)
+    if sizes[0] >= sizes[1] or rule.accepts(simple, rich):
+        return None
+    gain, share = simple.criterion - rich.criterion, 1 - rich.nrmse_validation / simple.nrmse_validation
+    return (f"it reaches {100 * simple.nrmse_validation:.2f} % on validation; the ladder's {', '.join(ladder.added)} "
+            f"({sizes[1]} fitted parameters, validation {100 * rich.nrmse_validation:.2f} %) do not beat it by the "
+            f"rule (they change the criterion by {gain:+.1f} and the validation mismatch by {100 * share:.1f} %; "
+            f"needed more than {rule.threshold:g} and {100 * rule.min_share:g} %), and it has {sizes[0]}: the "
+            f"simpler model is kept, and the ladder's effects stood in for it")
 
 
 def _stages(ranker: Ranker | None, discovery: Discoverer | None, legacy: dict) -> tuple[Ranker, Discoverer | None]:
