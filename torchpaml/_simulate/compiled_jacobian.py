@@ -38,6 +38,7 @@ import torch
 
 from torchpaml._simulate.compiled import (RATES_ARGUMENTS, _Compiled, c_function, compiled_form, rates_function,
                                           sequential_states, warn_once)
+from torchpaml._simulate.differences import difference_step
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.method import Method
 from torchpaml._simulate.steps import BDF_NEW, BDF_OLD, D, GAMMA, HALVINGS, MAX_ITERATIONS, NEWTON_TOL, STALL_TOL
@@ -446,28 +447,25 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
 def _differenced(simulate: Callable, parameters: np.ndarray, columns: list[int], t: torch.Tensor, u: torch.Tensor,
                  x0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | None:
     r"""The outputs and their Jacobian by central differences of whole compiled simulations (a kinked physics,
-    :class:`_Sensitivities`): each column $(\hat y(\theta + s e_j) - \hat y(\theta - s e_j))/2s$, a parameter's with
-    $s$ = :data:`~torchpaml._simulate.sensitivity.DIFFERENCE_STEP` $\cdot\max(1, |\rho_j|)$ and an initial state's
-    with $s$ = ``DIFFERENCE_STEP`` $\cdot\max(1, \max|x_0|)$, the steps of the engine's differences
-    (:func:`~torchpaml._simulate.sensitivity.difference_jacobian`), 2(p + n) + 1 runs in C."""
-    from torchpaml._simulate.sensitivity import DIFFERENCE_STEP  # sensitivity imports this module (via shooting)
-
+    :class:`_Sensitivities`): each column $(\hat y(\theta + s e_j) - \hat y(\theta - s e_j))/2s$ with the steps
+    of the engine's differences (:func:`~torchpaml._simulate.differences.difference_step` of $\rho_j$, of
+    $\max|x_0|$ for an initial state's), 2(p + n) + 1 runs in C."""
     def output(p: np.ndarray, x: torch.Tensor) -> torch.Tensor | None:
         done = simulate(p, [], t, u, x)
         return None if done is None else done[0]
 
     y = output(parameters, x0)
-    scale = max(1.0, float(x0.detach().abs().max()))
+    state_step = difference_step(float(x0.detach().abs().max()))
     differences = []
     for column in columns:
         if column >= 0:
-            step = DIFFERENCE_STEP * max(1.0, abs(float(parameters[column])))
+            step = difference_step(float(parameters[column]))
             up, down = parameters.copy(), parameters.copy()
             up[column] += step
             down[column] -= step
             sides = output(up, x0), output(down, x0)
         else:
-            step = DIFFERENCE_STEP * scale
+            step = state_step
             direction = torch.zeros_like(x0)
             direction[..., -1 - column] = step
             sides = output(parameters, x0 + direction), output(parameters, x0 - direction)

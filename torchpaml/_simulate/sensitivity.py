@@ -16,7 +16,7 @@ $J_{t,j} = \partial \hat y_t / \partial \rho_j$ for the raw (unconstrained) para
   implicit-function correction (:meth:`~torchpaml._simulate.shooting.ShootingSolution.states`), not of
   whole simulations.
 
-Central differences take the step :data:`DIFFERENCE_STEP` (error ~1e-10 relative).
+Central differences take the step :func:`~torchpaml._simulate.differences.difference_step` (error ~1e-10 relative).
 
 Differences, not forward mode: on torch 2.13, forward-mode AD sends every operation that mixes a
 dual tensor with a Python number through Python decompositions, about a hundred times slower than the
@@ -38,6 +38,7 @@ from torch.func import functional_call
 
 from torchpaml._errors import ConfigurationError
 from torchpaml._grid import check_hold
+from torchpaml._simulate.differences import difference_step
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.lti import discrete_response, discretize, exact_step, foh_exponent
 from torchpaml._simulate.method import Method
@@ -146,13 +147,9 @@ def _exact_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], h: float, t
     return y, J.movedim(0, -1)
 
 
-#: Central-difference step, relative to max(1, |value|): truncation error ~1e-12, rounding ~1e-10.
-DIFFERENCE_STEP = 1e-6
-
-
 def _directional(function, value: torch.Tensor, direction: torch.Tensor) -> torch.Tensor:
     """The derivative of ``function`` at ``value`` along ``direction``, by a central difference."""
-    step = DIFFERENCE_STEP * max(1.0, float(value.abs().max()))
+    step = difference_step(float(value.abs().max()))
     with torch.no_grad():
         return (function(value + step * direction) - function(value - step * direction)) / (2 * step)
 
