@@ -253,3 +253,30 @@ def test_a_record_held_zero_order_is_fitted_as_held(grid):
             assert fit.parameters[name] == pytest.approx(truth.physical_parameters()[name], rel=1e-6)
         misread = fit_physics(copy.deepcopy(start), Record(t, u[0], y[0], "misread"))
         assert abs(misread.parameters["omega0"] / 2.5 - 1) > 1e-3
+
+
+def test_a_fit_that_stalls_on_a_short_step_is_restarted_from_where_it_stopped(monkeypatch):
+    """trf stops where one step gains less than ``ftol``; a restart, whose trust region starts afresh, goes on while
+    it gains more, within the fit's evaluations in all, and a fit stopped by its gradient is not restarted."""
+    import types
+
+    from torchpaml._fit import physics_fit
+
+    runs = iter([(10.0, 2, 5), (4.0, 2, 3), (4.0 * (1 - 1e-12), 2, 2), (1.0, 2, 1)])
+    limits = []
+
+    def scripted(residual, x, *, max_nfev, **options):
+        cost, status, nfev = next(runs)
+        limits.append(max_nfev)
+        return types.SimpleNamespace(x=x + 1.0, cost=cost, status=status, nfev=nfev)
+
+    monkeypatch.setattr(physics_fit, "least_squares", scripted)
+    problem = types.SimpleNamespace(residual=None, evaluate=None)
+    result = physics_fit._restarted(problem, np.zeros(2), (-np.inf, np.inf), 60, 1e-6)
+    assert limits == [60, 55, 52]  # the third gained less than ftol: no fourth run
+    assert result.cost == 4.0 * (1 - 1e-12) and list(result.x) == [3.0, 3.0]
+
+    runs = iter([(10.0, 1, 5)])
+    limits.clear()
+    assert physics_fit._restarted(problem, np.zeros(2), (-np.inf, np.inf), 60, 1e-6).cost == 10.0
+    assert limits == [60]

@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from torchpaml import Estimate, CubicStiffness, Record, fit_physics, Oscillator, pseudorandom, time_grid
+from torchpaml import Estimate, CubicStiffness, Record, Rest, fit_physics, Oscillator, pseudorandom, time_grid
 
 X0 = torch.tensor([[0.8, -1.5]], dtype=torch.float64)
 
@@ -66,8 +66,9 @@ def test_the_initial_state_probe_measures_its_gain_on_samples_its_fit_did_not_se
     """The probe estimates each validation record's state on its first 10 % and scores the rest. A record that
     starts away from rest gains there (its transient is the error); one that starts at rest gains nothing."""
     from torchpaml import SelectionRule
-    from torchpaml._diagnostics.mismatch.prober import START_WINDOW, _held_out_gain
+    from torchpaml._diagnostics.mismatch.prober import held_out_gain
     from torchpaml._diagnostics.ranking.scoring import score_model
+    from torchpaml._fit.initial_state import START_WINDOW
 
     truth = Oscillator(0.2, 2.0, 4.0, learn=())
     t = time_grid(10.0, 0.02)
@@ -81,9 +82,35 @@ def test_the_initial_state_probe_measures_its_gain_on_samples_its_fit_did_not_se
     train = _record(Oscillator(0.2, 2.0, 4.0))
     fit = fit_physics(model, train, initial_state=Estimate())
     score = score_model(model, fit, [validation], SelectionRule())
-    held_out, gain = _held_out_gain(score, [validation])
+    estimated = score_model(model, fit, [validation], SelectionRule(), Estimate())
+    held_out, gain = estimated.nrmse_validation, held_out_gain(score, estimated, [validation])
     assert START_WINDOW == 0.1
     if gains:
         assert gain > 0.5 and held_out < 0.05  # the transient was the error
     else:  # no transient: no gain on the unseen samples (measured -1.2 %: the state fitted to the window's noise)
         assert gain < 0.005
+
+
+def test_a_validation_record_is_scored_after_the_window_its_start_was_estimated_on():
+    """``Estimate()`` estimates each validation record's state on its start window (10 %, at least 20 samples) and
+    scores the samples after it: a model wrong only inside that window scores as the truth, one wrong after it
+    does not, and the estimate sees only the window."""
+    from torchpaml import SelectionRule
+    from torchpaml._diagnostics.ranking.scoring import score_model, scored_mismatch
+    from torchpaml._fit.initial_state import start_window
+
+    truth = Oscillator(0.2, 2.0, 4.0, learn=())
+    validation = _record(truth, seed=1)
+    samples = len(validation.t)
+    assert start_window(samples) == samples // 10 and start_window(100) == 20 and start_window(15) == 14
+    fit = fit_physics(truth, _record(truth), initial_state=Estimate())
+    score = score_model(truth, fit, [validation], SelectionRule(), Estimate())
+    assert score.validation_states[0] == pytest.approx(X0[0], abs=1e-6)  # the window holds the start
+    assert score.nrmse_validation < 1e-7 and score.samples == samples - start_window(samples)
+    first = start_window(samples)
+    wrong_inside, wrong_after = score.validation_outputs[0].clone(), score.validation_outputs[0].clone()
+    wrong_inside[:first] += 1.0
+    wrong_after[first:] += 1.0
+    assert scored_mismatch([validation], [wrong_inside], Estimate()) < 1e-7
+    assert scored_mismatch([validation], [wrong_after], Estimate()) > 0.1
+    assert scored_mismatch([validation], [wrong_inside], Rest()) > 0.1  # from rest every sample is scored

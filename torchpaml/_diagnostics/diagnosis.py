@@ -62,7 +62,7 @@ from torchpaml._diagnostics.mismatch.result import MismatchProbes
 from torchpaml._diagnostics.ranking.ladder import Ladder, model_ladder
 from torchpaml._diagnostics.ranking.ranker import TIE, Ranker
 from torchpaml._diagnostics.results import ModelScore, Ranking
-from torchpaml._diagnostics.ranking.scoring import as_records, score_model
+from torchpaml._diagnostics.ranking.scoring import as_records, score_model, scored_mismatch
 from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, OverBudget, check_budget
 from torchpaml._diagnostics.analysis.residuals import ResidualAnalysis, residual_analysis
@@ -316,17 +316,17 @@ def hybrid_residual(step: ModelScore, train: Record | Sequence[Record], alpha: f
 
 
 def _hybrid(step: ModelScore, train: list[Record], validation: list[Record], alpha: float,
-            deadline: float | None, floor: float) -> HybridScore:
-    """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid; ``floor``: the
-    records' noise floor (:func:`~torchpaml._diagnostics.analysis.noise_floor.noise_floor`)."""
+            deadline: float | None, floor: float, initial_state: InitialState) -> HybridScore:
+    """Fit the Chebyshev residual on the training residual of ``step``'s model and score the hybrid on the validation
+    samples the physics was scored on (:func:`~torchpaml._diagnostics.ranking.scoring.scored_mismatch`); ``floor``:
+    the records' noise floor (:func:`~torchpaml._diagnostics.analysis.noise_floor.noise_floor`)."""
     t, u, y = _signals(train)
     residual, y_physics = hybrid_residual(step, train, alpha, deadline)
     with torch.no_grad():
         hybrid_train = mismatch(joined_in_time(y), joined_in_time(y_physics) + per_record(residual, t, u))
-        v_t, v_u, v_y = _signals(validation)
-        outputs = step.validation_outputs  # laid out as _signals lays the records: one batch, or one per record
-        v_physics = torch.stack(outputs) if isinstance(v_y, torch.Tensor) else [o[None] for o in outputs]
-        hybrid_validation = mismatch(joined_in_time(v_y), joined_in_time(v_physics) + per_record(residual, v_t, v_u))
+        outputs = [y_model + residual(record.elapsed, record.u[None])[0]  # each record's filter from rest
+                   for record, y_model in zip(validation, step.validation_outputs, strict=True)]
+        hybrid_validation = scored_mismatch(validation, outputs, initial_state)
     noise, linear_share = _noise_like(train[0], joined_in_time(y_physics)[0, :len(train[0].t)])
     adequacy = assess_adequacy(step.nrmse_train, hybrid_train, step.nrmse_validation, hybrid_validation,
                                residual_white=noise, linear_share=linear_share,
@@ -397,7 +397,8 @@ def diagnose(
     floor = noise_floor(train + validation, validation)  # one reading for both rungs
     log.info("fitting the Chebyshev residual on top")
     with ThreadPoolExecutor(min(2, torch.get_num_threads())) as pool:  # one where torch has one (a fleet's worker)
-        hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha, deadline, floor),
+        hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha, deadline, floor,
+                                                     ladder.rankings[0].initial_state),
                                 _distinct(base, ladder.final)))
     complete = hybrids[-1].adequacy.complete
     probes = None if prober is None else prober.probe(ladder.rankings[-1], train, validation, ranker=ranker,

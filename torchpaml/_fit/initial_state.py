@@ -2,7 +2,11 @@
 
 ``Rest()`` (the default) starts every record at the physics' rest state; ``Estimate()`` fits each training
 record's initial state with the parameters (one unbounded unknown per state) and starts each validation record
-from the state that best explains it, the parameters fixed, as MATLAB's ``compare`` does. The strings
+from the state that best explains its start window, the parameters fixed: its first :data:`START_WINDOW` of the
+samples, at least :data:`MIN_START_SAMPLES` (:func:`start_window`), as the official benchmarks' init windows do. The
+record is then scored after that window (:meth:`InitialState.scored_from`), on samples the estimate did not see: an
+estimate on the whole record would let a model with more states (an effect with its own) fit its validation
+record through them. The strings
 ``"rest"`` and ``"estimate"`` name them wherever a policy is taken (:func:`as_initial_state`; deprecated, they go
 in the next release).
 
@@ -27,7 +31,19 @@ from torchpaml._errors import ConfigurationError
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._simulate.solvers import Solver
 
-__all__ = ["Estimate", "InitialState", "Rest", "as_initial_state", "policy_named"]
+__all__ = ["Estimate", "InitialState", "MIN_START_SAMPLES", "Rest", "START_WINDOW", "as_initial_state",
+           "policy_named", "start_window"]
+
+#: The share of a validation record, at its start, on which ``Estimate()`` estimates its initial state.
+START_WINDOW = 0.1
+#: The fewest samples that window holds.
+MIN_START_SAMPLES = 20
+
+
+def start_window(samples: int) -> int:
+    """How many of a record's ``samples`` its start window holds: :data:`START_WINDOW` of them, at least
+    :data:`MIN_START_SAMPLES`, and at most all but one (the record is scored after it)."""
+    return max(1, min(samples - 1, max(MIN_START_SAMPLES, int(START_WINDOW * samples))))
 
 
 class InitialState:
@@ -64,7 +80,13 @@ class InitialState:
 
     def validation_starts(self, records: Sequence[Record],
                           estimate: Callable[[Record], torch.Tensor]) -> list[torch.Tensor | None]:
-        """Each validation record's initial state, ``estimate(record)`` being the state that best explains it."""
+        """Each validation record's initial state, ``estimate(window)`` being the state that best explains the
+        record ``window`` (its start window, :meth:`scored_from`'s samples)."""
+        raise NotImplementedError
+
+    def scored_from(self, record: Record) -> int:
+        """The first sample of ``record`` a validation mismatch is scored on: after the samples its start was
+        estimated on."""
         raise NotImplementedError
 
     def free_response(self, physics: AbstractPhysics, record: Record, x0: torch.Tensor | None,
@@ -101,6 +123,9 @@ class Rest(InitialState):
     def validation_starts(self, records, estimate):
         return [None] * len(records)
 
+    def scored_from(self, record):
+        return 0
+
     def free_response(self, physics, record, x0, solver):
         y = simulate_record(physics, record, x0, solver=solver)
         return y, y.new_zeros(len(record.t), y.shape[-1], 0)
@@ -109,7 +134,7 @@ class Rest(InitialState):
 @dataclass(frozen=True)
 class Estimate(InitialState):
     """Each record's initial state is estimated: with the parameters on the training records, with the parameters
-    fixed on the validation records."""
+    fixed on each validation record's start window, which is not scored (module docstring)."""
 
     estimated: ClassVar[bool] = True
     name: ClassVar[str] = "estimate"
@@ -136,7 +161,10 @@ class Estimate(InitialState):
         return states
 
     def validation_starts(self, records, estimate):
-        return [estimate(r) for r in records]
+        return [estimate(r.window(0, self.scored_from(r))) for r in records]
+
+    def scored_from(self, record):
+        return start_window(len(record.t))
 
     def free_response(self, physics, record, x0, solver):
         y, J = record_jacobian(physics, [], record, x0, initial_state=True, solver=solver)

@@ -175,10 +175,41 @@ def fit_physics(
     with one_thread(), budget.active() if budget is not None else contextlib.nullcontext():  # the step check's too
         while (resolved := step_check.solver(x, result is not None)) != problem.solver or result is None:
             problem.use(resolved)  # at the start, then at each optimum
-            result = least_squares(problem.residual, x, jac=lambda x: problem.evaluate(x)[1], bounds=(lower, upper),
-                                   method="trf", x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=1e-10, gtol=1e-10)
+            result = _restarted(problem, x, (lower, upper), max_nfev, ftol)
             x = result.x
     return _estimate(problem, result.x)
+
+
+#: How scipy's ``least_squares`` ended where a restart may go on: the change of the cost (``ftol``), of the unknowns
+#: (``xtol``), or both; not the gradient (``gtol``), not the evaluation limit.
+_STALLED = (2, 3, 4)
+
+
+def _restarted(problem: TrustRegionProblem, x: np.ndarray, bounds: tuple, max_nfev: int, ftol: float):
+    r"""``least_squares`` (trf) from ``x``, restarted from where it stopped while a restart lowers the cost by more
+    than ``ftol`` of it; at most ``max_nfev`` evaluations in all.
+
+    trf stops where one step lowers the cost by less than ``ftol`` of it (or moves the unknowns by less than
+    ``xtol``). In a curved valley its trust region shrinks to short steps, and it stops there far from the optimum:
+    a ranking's refit on the cascaded tanks (``ftol`` = 0.1/n) stopped at 6.12 % on training, and a restart from that
+    point, whose trust region starts afresh, went on to 4.65 %. Where the fit is at its optimum, the restart's
+    first step gains less than ``ftol`` and it ends: one iteration more.
+    """
+    def solve(start: np.ndarray, evaluations: int):
+        return least_squares(problem.residual, start, jac=lambda x: problem.evaluate(x)[1], bounds=bounds,
+                             method="trf", x_scale="jac", max_nfev=evaluations, ftol=ftol, xtol=1e-10, gtol=1e-10)
+
+    result = solve(x, max_nfev)
+    left = max_nfev - result.nfev
+    while result.status in _STALLED and left > 0:
+        again = solve(result.x, left)
+        left -= again.nfev
+        went_on = again.cost < (1.0 - ftol) * result.cost
+        if again.cost <= result.cost:
+            result = again
+        if not went_on:
+            break
+    return result
 
 
 def _checked_unknowns(physics: AbstractPhysics, records: list[Record], initial_state: InitialState,

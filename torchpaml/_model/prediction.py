@@ -3,7 +3,8 @@ output band from the fit's covariance.
 
 **The start.** The model's initial-state policy (:class:`~torchpaml.FittedModel`'s ``initial_state``, the one the
 diagnosis scored with) starts the record: ``Rest()`` at rest; ``Estimate()`` at the state that best explains the
-record's outputs, the parameters fixed (:func:`~torchpaml.estimate_initial_state`).
+outputs of the record's start window, the parameters fixed (:func:`~torchpaml.estimate_initial_state`,
+:func:`~torchpaml._fit.initial_state.start_window`).
 
 **The band.** To first order in the parameters $\theta$ (those the fit estimated), with the output's sensitivity
 $J_k = \partial \hat y_k / \partial \theta$ (time, n_y, p) and the fit's covariance

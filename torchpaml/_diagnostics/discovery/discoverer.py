@@ -18,11 +18,10 @@ from torchpaml._diagnostics.discovery.closed_form_search import ClosedFormSearch
 from torchpaml._diagnostics.discovery.result import Discovery, closed_form_samples, library_best
 from torchpaml._diagnostics.discovery.regressors import columns
 from torchpaml._diagnostics.results import Ranking
-from torchpaml._diagnostics.ranking.scoring import as_records
+from torchpaml._diagnostics.ranking.scoring import as_records, scored_mismatch
 from torchpaml._errors import ConfigurationError
 from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
-from torchpaml._metrics import mismatch
 from torchpaml._physics.terms import TermLibrary, variables_of
 
 __all__ = ["Discoverer", "discover_missing_force"]
@@ -104,9 +103,9 @@ class Discoverer:
                                   solver=baseline.solver, budget=budget)
         stopped = [] if neural.stopped is None else [f"the neural rate: over budget ({neural.stopped:.1f} s)"]
         with torch.no_grad():
-            neural_validation = mismatch(torch.cat([r.y for r in validation]),
-                                         torch.cat([simulate_record(neural.model, r, x0, solver=neural.solver)[0]
-                                                    for r, x0 in zip(validation, baseline.validation_states, strict=True)]))
+            neural_validation = scored_mismatch(
+                validation, [simulate_record(neural.model, r, x0, solver=neural.solver)[0]
+                             for r, x0 in zip(validation, baseline.validation_states, strict=True)], ranking.initial_state)
         log.info("discovery: %d terms on %d equation(s) through the output", len(terms), len(equations))
         data = columns(neural, baseline, terms, equations, variables, train, ranking.initial_state)
         log.info("discovery: sparse regression on %d terms", len(terms) * len(equations))

@@ -9,8 +9,8 @@ The force's place also takes the discovery's closed form where the discovery ran
 discovers, and adds the form afterwards: :meth:`~torchpaml._diagnostics.mismatch.result.MismatchProbes.with_discovery`), and the output map's place the
 closed form of the output's residual over the states and inputs
 (:func:`~torchpaml._diagnostics.discovery.output_map.output_closed_form`); the initial state's place estimates
-each validation record's initial state on its first :data:`START_WINDOW` and measures the gain on the rest, which
-that fit did not see (as every other probe's gain is measured on validation records its fit did not see), and says
+each validation record's initial state on its start window
+(:func:`~torchpaml._fit.initial_state.start_window`) and measures the gain on the rest, which that fit did not see (as every other probe's gain is measured on validation records its fit did not see), and says
 where in time the error sits (:mod:`~torchpaml._diagnostics.mismatch.in_time`). An effect with a ``far_strength``
 (:attr:`~torchpaml.AbstractEffect.far_strength`, e.g. a sensor that reads only the magnitude) is also refitted from
 it on the first rung's physics, without the effects the ladder fitted in its place. Each place's *validation gain* is the share by which its
@@ -40,24 +40,14 @@ from torchpaml._diagnostics.mismatch.result import DISCOVERED, MismatchProbes, P
 from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE
 from torchpaml._diagnostics.ranking.ranker import Ranker
 from torchpaml._diagnostics.ranking.refits import Refits
-from torchpaml._diagnostics.ranking.scoring import as_records, score_model
+from torchpaml._diagnostics.ranking.scoring import as_records, score_model, scored_mismatch
 from torchpaml._diagnostics.ranking.steps import applicable, placed, scored
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
 from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
-from torchpaml._data.simulation import simulate_record
-from torchpaml._fit.initial_state import Estimate
-from torchpaml._fit.physics_fit import estimate_initial_state
-from torchpaml._metrics import mismatch
-from torchpaml._simulate.solvers import Auto
+from torchpaml._fit.initial_state import START_WINDOW, Estimate
 from torchpaml._physics.effects import EFFECTS
 
 __all__ = ["Prober"]
-
-#: The share of a validation record at its start on which the initial-state probe estimates the state; its gain is
-#: measured on the rest.
-START_WINDOW = 0.1
-#: The fewest samples that window holds.
-MIN_START_SAMPLES = 20
 
 log = logging.getLogger(__name__)
 
@@ -172,28 +162,18 @@ class Prober:
             return ProbeResult(place.name, place.extension, note=f"estimated already (--initial_state estimate); {where}")
         score = ranking.baseline
         estimated = score_model(score.model, score.estimate, validation, ranking.rule, Estimate())
-        held_out, gain = _held_out_gain(score, validation)
+        gain = held_out_gain(score, estimated, validation)
         note = (f"{where}; each validation record's state estimated on its first {100 * START_WINDOW:g} % and the "
                 f"gain measured on the rest, which that fit did not see")
-        return ProbeResult(place.name, place.extension, INITIAL_STATE, held_out, gain, note, estimated)
+        return ProbeResult(place.name, place.extension, INITIAL_STATE, estimated.nrmse_validation, gain, note,
+                           estimated)
 
 
-def _held_out_gain(score: ModelScore, validation: list[Record]) -> tuple[float, float]:
-    """The model's validation mismatch with each record's initial state estimated on its first :data:`START_WINDOW`
-    (at least :data:`MIN_START_SAMPLES` samples), over the samples after that window, and the gain against the
-    model from rest on the same samples: $1 - m_\\text{estimated} / m_\\text{rest}$."""
-    estimated, rest, measured = [], [], []
-    for record, y_rest in zip(validation, score.validation_outputs, strict=True):
-        window = min(len(record.t) - 1, max(MIN_START_SAMPLES, int(START_WINDOW * len(record.t))))
-        x0 = estimate_initial_state(score.model, record, window, solver=Auto(start=score.solver))
-        with torch.no_grad():
-            y = simulate_record(score.model, record, x0, solver=score.solver)[0]
-        estimated.append(y[window:])
-        rest.append(y_rest[window:])
-        measured.append(record.y[window:])
-    y = torch.cat(measured)
-    held_out = mismatch(y, torch.cat(estimated))
-    return held_out, 1.0 - held_out / mismatch(y, torch.cat(rest))
+def held_out_gain(rest: ModelScore, estimated: ModelScore, validation: list[Record]) -> float:
+    """The gain of ``estimated`` (the model scored with ``Estimate()``: each validation record's state estimated on
+    its start window, the mismatch over the samples after it) against ``rest`` (the same model from rest) on the
+    same samples: $1 - m_\\text{estimated} / m_\\text{rest}$."""
+    return 1.0 - estimated.nrmse_validation / scored_mismatch(validation, rest.validation_outputs, Estimate())
 
 
 def _refit_best(entries: list[EffectEvidence], extended: dict[str, tuple], refits: Refits, shortlist: int
