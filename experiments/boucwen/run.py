@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> dict:
     held_out = {"held_out_period": held_out_error(final, record)}
     goal = diagnosed_goal(BENCHMARK, diagnosis, models, hybrid, evidence=held_out)
     result = {"schema_version": SCHEMA_VERSION, "benchmark": BENCHMARK.name, "protocol": BENCHMARK.protocol(),
-              "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid,
+              "found": diagnosis.ladder.found, "models": models, "hybrid": hybrid,
               "hybrids": diagnosis_to_dict(diagnosis)["hybrid"], "goal": goal,
               "tried": tried_entries(BENCHMARK, diagnosis, tests), "seconds": time.perf_counter() - start}
     return write_result(args.out, result, diagnosis.verdict)

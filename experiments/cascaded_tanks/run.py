@@ -150,7 +150,7 @@ def main(argv: list[str] | None = None) -> dict:
     y_validation = simulate_record(final.model, estimation, final.train_states[0], solver=final.solver)[0][len(train.t):]
     validation_rmse = float((validation.y - y_validation)[:, 0].square().mean().sqrt())
     result = {"schema_version": SCHEMA_VERSION, "benchmark": BENCHMARK.name, "protocol": BENCHMARK.protocol(),
-              "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid,
+              "found": diagnosis.ladder.found, "models": models, "hybrid": hybrid,
               "hybrids": diagnosis_to_dict(diagnosis)["hybrid"], "free_spill": spill,
               "tried": [*tried_entries(BENCHMARK, diagnosis, tests),
                         *hypotheses(final, estimation, train, validation, tests)]}

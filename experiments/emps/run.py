@@ -92,7 +92,7 @@ def main(argv: list[str] | None = None) -> dict:
                              start_states=final.train_states)
     tried = [*tried_entries(BENCHMARK, diagnosis, tests), whole]
     result = {"schema_version": SCHEMA_VERSION, "benchmark": BENCHMARK.name, "protocol": BENCHMARK.protocol(),
-              "found": diagnosis.ladder.added, "friction": friction(final.parameters), "models": models,
+              "found": diagnosis.ladder.found, "friction": friction(final.parameters), "models": models,
               "hybrid": hybrid, "tried": tried}
     evidence, notes = measured(final, [train, validation], models, tried)
     result["goal"] = diagnosed_goal(BENCHMARK, diagnosis, models, hybrid, evidence=evidence, notes=notes)

@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> dict:
     floor, samples = noise_floor(train, PERIOD)
     result = {"schema_version": SCHEMA_VERSION, "benchmark": BENCHMARK.name, "protocol": BENCHMARK.protocol(),
               "noise_floor": {"rms": BENCHMARK.scale * floor, "samples": samples},
-              "found": diagnosis.ladder.added, "models": models,
+              "found": diagnosis.ladder.found, "models": models,
               "hybrid": hybrid_entry(BENCHMARK, final, [train], alpha, alarm, tests),
               "hybrids": diagnosis_to_dict(diagnosis)["hybrid"],
               "tried": tried_entries(BENCHMARK, diagnosis, tests)}

@@ -185,12 +185,19 @@ class Diagnosis:
         return _distinct(self.baseline, self.ladder.final)
 
     @property
+    def _removed(self) -> str:
+        """The effects the ladder added and then removed as stand-ins, as a clause of the verdict ("" where none)."""
+        gone = [r.effect for r in self.ladder.removals if r.removed]
+        return "" if not gone else (f" ({', '.join(gone)} added, then removed: the later effects explain what "
+                                    f"{'it' if len(gone) == 1 else 'they'} stood in for)")
+
+    @property
     def verdict(self) -> str:
         """One paragraph: what is missing, how the error fell, and what the residual on top says."""
         base, final = self.baseline, self.ladder.final
         if self.ladder.added:
             replaced = self.discovery is not None and bool(self.discovery.replaces)
-            found = (f"missing effect(s) found: {', '.join(self.ladder.added)}. Validation mismatch "
+            found = (f"missing effect(s) found: {', '.join(self.ladder.found)}{self._removed}. Validation mismatch "
                      f"{100 * base.nrmse_validation:.2f} % -> {100 * final.nrmse_validation:.2f} %. "
                      f"{'Last rung' if replaced else 'Final model'}: {final.equation}.")
         else:
@@ -427,7 +434,7 @@ def _against_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discovery, 
     rule, and it has fewer fitted parameters (the simpler model); else ``found``, its reason saying what the form
     on the physics alone was and why it was not kept."""
     base = ladder.steps[0]
-    log.info("discovery on %s alone, against the ladder's %s", base.name, ", ".join(ladder.added))
+    log.info("discovery on %s alone, against the ladder's %s", base.name, ", ".join(ladder.found))
     alone = discovery.discover(ladder.rankings[0], train, validation, deadline)
     form, final, rule = alone.discovered, ladder.final, ladder.rankings[-1].rule
     if not alone.recommended or form is None:
@@ -435,7 +442,7 @@ def _against_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discovery, 
         return replace(found, reason=f"{found.reason}; {note}")
     kept = _simpler_kept(form, final, ladder, rule)
     if kept is not None:
-        return replace(alone, reason=f"on {base.name} alone: {alone.reason}; {kept}", replaces=list(ladder.added))
+        return replace(alone, reason=f"on {base.name} alone: {alone.reason}; {kept}", replaces=list(ladder.found))
     sizes = len(form.estimate.parameters), len(final.estimate.parameters)
     why = f"it has {sizes[0]} fitted parameters against {sizes[1]}" if sizes[0] >= sizes[1] else \
         "the ladder's last rung beats it by the rule"
@@ -458,7 +465,7 @@ def _form_without_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discov
     budget = Budget(f"discovery: {found.text} on {base.name} alone", evaluations=REFIT_BUDGET * discovery.max_nfev,
                     deadline=math.inf if deadline is None else deadline)
     log.info("discovery: refitting %s on %s alone, without the ladder's %s", found.text, base.name,
-             ", ".join(ladder.added))
+             ", ".join(ladder.found))
     try:
         fitted = fit_closed_form(base.model, pairs, coefficients, {}, train, discovery.max_nfev,
                                  ladder.rankings[0].initial_state, budget, base.solver)
@@ -470,7 +477,7 @@ def _form_without_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discov
         return found
     reason = f"{found.reason}; refitted on {base.name} alone, {kept}"
     return replace(found, physics=base, discovered=alone, effect=alone.model.effects["discovered"], reason=reason,
-                   replaces=list(ladder.added))
+                   replaces=list(ladder.found))
 
 
 def _simpler_kept(simple: ModelScore, rich: ModelScore, ladder: Ladder, rule: SelectionRule) -> str | None:
@@ -481,7 +488,7 @@ def _simpler_kept(simple: ModelScore, rich: ModelScore, ladder: Ladder, rule: Se
     if sizes[0] >= sizes[1] or rule.accepts(simple, rich):
         return None
     gain, share = simple.criterion - rich.criterion, 1 - rich.nrmse_validation / simple.nrmse_validation
-    return (f"it reaches {100 * simple.nrmse_validation:.2f} % on validation; the ladder's {', '.join(ladder.added)} "
+    return (f"it reaches {100 * simple.nrmse_validation:.2f} % on validation; the ladder's {', '.join(ladder.found)} "
             f"({sizes[1]} fitted parameters, validation {100 * rich.nrmse_validation:.2f} %) do not beat it by the "
             f"rule (they change the criterion by {gain:+.1f} and the validation mismatch by {100 * share:.1f} %; "
             f"needed more than {rule.threshold:g} and {100 * rule.min_share:g} %), and it has {sizes[0]}: the "

@@ -116,18 +116,25 @@ def goal_entry(benchmark: Benchmark, models: list[dict], hybrid: dict, limit: st
 
 def tried_entries(benchmark: Benchmark, diagnosis: Diagnosis, tests: dict[str, Record]) -> list[dict]:
     """Every hypothesis the diagnosis fitted, each scored on ``tests`` (:meth:`Benchmark.scores`): on each rung of the
-    ladder, the candidates it refitted (``stage`` ``"rung N"``), and then the probes of where the final grey box's
-    mismatch points (``stage`` ``"probe"``, with its ``place``); ``validation_gain``: the share by which it lowers
-    its rung's validation mismatch; ``kept``: it is in the final grey box; ``named``: the place the probes name.
+    ladder, the candidates it refitted (``stage`` ``"rung N"``) and the earlier effects tried out of its model
+    (``"without EFFECT"``, :mod:`~torchpaml._diagnostics.ranking.removal`), and then the probes of where the final
+    grey box's mismatch points (``stage`` ``"probe"``, with its ``place``); ``validation_gain``: the share by which
+    it lowers its rung's validation mismatch; ``kept``: it is in the final grey box; ``named``: the place the probes name.
     Every choice was made on the validation records; the test figures are reported, not chosen on."""
-    rows, added = [], diagnosis.ladder.added
-    for rung, ranking in enumerate(diagnosis.ladder.rankings):
+    ladder = diagnosis.ladder
+    rows, added, found = [], ladder.added, ladder.found
+    for rung, ranking in enumerate(ladder.rankings):
         base = ranking.baseline.nrmse_validation
         for entry in (e for e in ranking.entries if e.refit is not None):
             rows.append({"stage": f"rung {rung + 1}", "place": None, "hypothesis": entry.effect,
                          "validation_gain": 1.0 - entry.refit.nrmse_validation / base,
                          "rmse": benchmark.scores(entry.refit, tests),
-                         "kept": rung < len(added) and entry.effect == added[rung], "named": False})
+                         "kept": rung < len(added) and entry.effect == added[rung] and entry.effect in found,
+                         "named": False})
+    for removal in (r for r in ladder.removals if r.score is not None):
+        rows.append({"stage": f"rung {removal.rung + 1}", "place": None, "hypothesis": f"without {removal.effect}",
+                     "validation_gain": 1.0 - removal.nrmse_validation / removal.against,
+                     "rmse": benchmark.scores(removal.score, tests), "kept": removal.removed, "named": False})
     probes = diagnosis.probes
     best = None if probes is None else probes.best
     for row in [] if probes is None else probes.rows:

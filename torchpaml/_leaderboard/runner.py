@@ -51,7 +51,7 @@ def run_benchmark(benchmark: Benchmark, out: Path, data: Path, shortlist: int = 
     models = ladder_entries(benchmark, diagnosis, tests)
     hybrid = hybrid_entry(benchmark, diagnosis.ladder.final, [train], alpha, diagnosis.hybrids[-1].adequacy, tests)
     result = {"schema_version": SCHEMA_VERSION, "benchmark": benchmark.name, "protocol": benchmark.protocol(),
-              "found": diagnosis.ladder.added, "models": models, "hybrid": hybrid,
+              "found": diagnosis.ladder.found, "models": models, "hybrid": hybrid,
               "hybrids": diagnosis_to_dict(diagnosis)["hybrid"],
               "goal": diagnosed_goal(benchmark, diagnosis, models, hybrid),
               "tried": tried_entries(benchmark, diagnosis, tests), "seconds": time.perf_counter() - start}

@@ -175,7 +175,8 @@ def ladder_figure(ladder: Ladder, discovered: ModelScore | None = None) -> Figur
     """
     fig = Figure(figsize=(7, 4), layout="constrained")
     ax = fig.subplots()
-    labels = ["physics", *(f"+ {name}" for name in ladder.added)]
+    labels = ["physics", *(f"+ {name}" + ("" if gone is None else f" - {gone}")
+                           for name, gone in zip(ladder.added, ladder.removed + [None] * len(ladder.added)))]
     steps = range(len(ladder.steps))
     ax.semilogy(steps, [100 * s.nrmse_validation for s in ladder.steps], "o-", label="validation")
     ax.semilogy(steps, [100 * s.nrmse_train for s in ladder.steps], "s--", label="training")

@@ -44,9 +44,11 @@ def ladder_to_dicts(ladder: Ladder) -> list[dict]:
     the seconds after which its fit stopped over its budget, the rung keeping its refit's parameters, else null;
     ``simpler``: how the simpler-effect rule weighed the added effect against the other kinds the rule accepted,
     :mod:`~torchpaml._diagnostics.ranking.occam`, else null; ``equivalent``: the candidates that give the added
-    effect's evidence on this physics, which the records cannot tell from it)."""
+    effect's evidence on this physics, which the records cannot tell from it; ``removed``: the earlier effect taken
+    out of the rung's model as a stand-in, :mod:`~torchpaml._diagnostics.ranking.removal`, else null)."""
     return [
         {"model": s.name, "equation": s.equation, "added": None if i == 0 else ladder.added[i - 1],
+         "removed": None if i == 0 or i > len(ladder.removed) else ladder.removed[i - 1],
          "nrmse_train": s.nrmse_train, "nrmse_validation": s.nrmse_validation, "criterion": s.criterion,
          "parameters": s.parameters, "uncertainty": _errors(s.uncertainty), "identifiability": s.warning,
          "fit_over_budget": ladder.rankings[i].fit_over_budget if i < len(ladder.rankings) else None,
@@ -159,6 +161,9 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict:
         "criterion": {"name": ranking.rule.criterion, "threshold": ranking.rule.threshold,
                       "min_share": ranking.rule.min_share},
         "ladder": ladder_to_dicts(diagnosis.ladder),
+        "removals": [{"rung": r.rung, "effect": r.effect, "nrmse_validation": r.nrmse_validation,
+                      "criterion": r.criterion, "removed": r.removed, "reason": r.reason}
+                     for r in diagnosis.ladder.removals],
         "undecided": [{"model": ranking.baseline.name, "effect": e.effect, "seconds": e.undecided,
                        "reason": e.refit_reason} for ranking in diagnosis.ladder.rankings for e in ranking.undecided],
         "where_it_fails": {
