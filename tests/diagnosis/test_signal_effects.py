@@ -47,5 +47,8 @@ def test_on_linear_physics_the_two_lags_are_named_as_one():
     first, second = ranking.entries[:2]
     assert {first.effect, second.effect} == {"input_lag", "sensor_lag"} and second.refit is not None
     assert first.effect == "input_lag" and ranking.equivalent == ["sensor_lag"], ranking_table(ranking)
-    assert "its first-order score equals input_lag's" in second.refit_reason
+    # the scores tie to 1e-6, so which of the two leads the shortlist and which is refitted as its twin is rounding's
+    reasons = {first.effect: first.refit_reason, second.effect: second.refit_reason}
+    assert ("its first-order score equals input_lag's" in reasons["sensor_lag"]
+            or "its first-order score equals sensor_lag's" in reasons["input_lag"]), reasons
     assert first.refit.nrmse_validation < 1.5 * floor
