@@ -61,7 +61,9 @@ def records(case: str, samples: int) -> tuple[list[Record], list[Record]]:
 
 def tanks_diagnosis(train: list[Record], validation: list[Record]):
     """The cascaded tanks diagnosed as ``experiments/cascaded_tanks/run.py`` does."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments" / TANKS))
+    folder = str(Path(__file__).resolve().parents[1] / "experiments" / TANKS)
+    if folder not in sys.path:  # once for the three runs
+        sys.path.insert(0, folder)
     from run import candidates
     from tanks import TwoTanks
 

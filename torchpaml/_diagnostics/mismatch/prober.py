@@ -9,9 +9,9 @@ The force's place also takes the discovery's closed form where the discovery ran
 discovers, and adds the form afterwards: :meth:`~torchpaml._diagnostics.mismatch.result.MismatchProbes.with_discovery`), and the output map's place the
 closed form of the output's residual over the states and inputs
 (:func:`~torchpaml._diagnostics.discovery.output_map.output_closed_form`); the initial state's place estimates
-each validation record's initial state on its start window
-(:func:`~torchpaml._fit.initial_state.start_window`) and measures the gain on the rest, which that fit did not see (as every other probe's gain is measured on validation records its fit did not see), and says
-where in time the error sits (:mod:`~torchpaml._diagnostics.mismatch.in_time`). An effect with a ``far_strength``
+each validation record's initial state on its start window (:func:`~torchpaml._fit.initial_state.start_window`)
+and measures the gain on the rest, which that fit did not see (as every other probe's gain is measured on
+validation records its fit did not see), and says where in time the error sits (:mod:`~torchpaml._diagnostics.mismatch.in_time`). An effect with a ``far_strength``
 (:attr:`~torchpaml.AbstractEffect.far_strength`, e.g. a sensor that reads only the magnitude) is also refitted from
 it on the first rung's physics, without the effects the ladder fitted in its place. Each place's *validation gain* is the share by which its
 extension lowers the model's validation mismatch; the table names the place with the largest gain
