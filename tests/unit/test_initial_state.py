@@ -102,7 +102,7 @@ def test_a_validation_record_is_scored_after_the_window_its_start_was_estimated_
     truth = Oscillator(0.2, 2.0, 4.0, learn=())
     validation = _record(truth, seed=1)
     samples = len(validation.t)
-    assert start_window(samples) == samples // 10 and start_window(100) == 20 and start_window(15) == 14
+    assert start_window(samples) == samples // 10 and start_window(100) == 20 and start_window(40) == 20
     fit = fit_physics(truth, _record(truth), initial_state=Estimate())
     score = score_model(truth, fit, [validation], SelectionRule(), Estimate())
     assert score.validation_states[0] == pytest.approx(X0[0], abs=1e-6)  # the window holds the start
@@ -114,3 +114,27 @@ def test_a_validation_record_is_scored_after_the_window_its_start_was_estimated_
     assert scored_mismatch([validation], [wrong_inside], Estimate()) < 1e-7
     assert scored_mismatch([validation], [wrong_after], Estimate()) > 0.1
     assert scored_mismatch([validation], [wrong_inside], Rest()) > 0.1  # from rest every sample is scored
+
+
+@pytest.mark.parametrize("samples", [39, 21])
+def test_a_validation_record_too_short_for_a_window_and_as_many_scored_samples_is_refused_before_any_fit(samples):
+    """Under ``Estimate()`` a validation record of fewer than 2 x MIN_START_SAMPLES samples would be scored on the
+    few samples after its window: refused by name, in ``diagnose`` before any fit; from rest it is scored whole."""
+    from torchpaml import DataError, diagnose
+    from torchpaml._fit.initial_state import MIN_START_SAMPLES, start_window
+
+    assert samples < 2 * MIN_START_SAMPLES
+    truth = Oscillator(0.2, 2.0, 4.0, learn=())
+    short = _record(truth, seed=1).window(0, samples, name="short")
+    with pytest.raises(DataError, match=rf"record 'short' has {samples} samples.*at least {2 * MIN_START_SAMPLES}"):
+        Estimate().scored_from(short)
+    with pytest.raises(DataError, match=f"has {samples} samples"):
+        start_window(samples)
+    assert Rest().scored_from(short) == 0
+    fits = []
+    monkey = pytest.MonkeyPatch()
+    monkey.setattr("torchpaml._diagnostics.diagnosis.model_ladder", lambda *a, **k: fits.append(1))
+    with pytest.raises(DataError, match=f"record 'short' has {samples} samples"):
+        diagnose(Oscillator(), [], [_record(truth)], [short], initial_state=Estimate())
+    monkey.undo()
+    assert not fits

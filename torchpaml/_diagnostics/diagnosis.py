@@ -74,7 +74,7 @@ from torchpaml._fit.residual_fit import fit_chebyshev_hammerstein, joined_in_tim
 from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters
 from torchpaml._fit.fitted_model import FittedModel
-from torchpaml._fit.initial_state import InitialState, Rest
+from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.checks import check_channels, check_physics, check_time_scale
 from torchpaml._data.checks import check_outputs_vary, check_scales_agree
@@ -391,8 +391,8 @@ def diagnose(
     ranker, discovery = _stages(ranker, discovery, legacy)
     check_budget(budget)
     deadline = None if budget is None else time.perf_counter() + budget
-    train, validation = as_records(train), as_records(validation)
-    _check_records(physics, candidates, train, validation, discovery)
+    train, validation, initial_state = as_records(train), as_records(validation), as_initial_state(initial_state)
+    _check_records(physics, candidates, train, validation, discovery, initial_state)
     log.info("diagnosing %s on %d training and %d validation record(s), %d samples; budget: %s (budget=, --budget)",
              physics.display_name, len(train), len(validation), sum(len(r.t) for r in train + validation),
              "none" if budget is None else f"{budget:.0f} s for the whole diagnosis")
@@ -519,11 +519,12 @@ def _stages(ranker: Ranker | None, discovery: Discoverer | None, legacy: dict) -
 
 
 def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect], train: list[Record],
-                   validation: list[Record], discovery: Discoverer | None) -> None:
+                   validation: list[Record], discovery: Discoverer | None, initial_state: InitialState) -> None:
     """Before any fit: the records' channels are the physics', each output varies and keeps one unit across records
     (:mod:`~torchpaml._data.checks`), the physics runs on the first record, each record's time step can be in
-    seconds for it, the discovery's terms parse, and every record has more samples than twice the most parameters a
-    fit takes and a uniform grid (the residual's exact filter)."""
+    seconds for it, the discovery's terms parse, every record has more samples than twice the most parameters a
+    fit takes and a uniform grid (the residual's exact filter), and each validation record is long enough to be scored
+    after its start (:meth:`~torchpaml.InitialState.scored_from`)."""
     most = len(physics.learnable_names()) + max((sum(r["learnable"] for r in describe_parameters(c)) + len(c.shape)
                                                  for c in candidates), default=0)
     for record in train + validation:
@@ -533,6 +534,8 @@ def _check_records(physics: AbstractPhysics, candidates: Sequence[AbstractEffect
                             f"parameters (the physics' and a candidate's) and judge the fit; give records of more "
                             f"than {2 * most} samples, or fix parameters")
         record.require_uniform("diagnose (its Chebyshev-Hammerstein residual, an exactly discretised filter)")
+    for record in validation:
+        initial_state.scored_from(record)
     check_outputs_vary(train + validation)
     check_scales_agree(train + validation)
     check_physics(physics, train[0].t, train[0].u)

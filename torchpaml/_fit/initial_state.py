@@ -27,7 +27,7 @@ import torch
 
 from torchpaml._data import Record
 from torchpaml._data.simulation import record_jacobian, simulate_record
-from torchpaml._errors import ConfigurationError
+from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._simulate.solvers import Solver
 
@@ -40,10 +40,17 @@ START_WINDOW = 0.1
 MIN_START_SAMPLES = 20
 
 
-def start_window(samples: int) -> int:
+def start_window(samples: int, name: str = "the record") -> int:
     """How many of a record's ``samples`` its start window holds: :data:`START_WINDOW` of them, at least
-    :data:`MIN_START_SAMPLES`, and at most all but one (the record is scored after it)."""
-    return max(1, min(samples - 1, max(MIN_START_SAMPLES, int(START_WINDOW * samples))))
+    :data:`MIN_START_SAMPLES`. A record is scored after its window, on at least as many samples as the window's least:
+    one of fewer than ``2 * MIN_START_SAMPLES`` samples is refused (a :class:`~torchpaml.DataError` that names
+    ``name``), never scored on the few samples left."""
+    if samples < 2 * MIN_START_SAMPLES:
+        raise DataError(f"{name} has {samples} samples: with initial_state Estimate() a validation record's initial "
+                        f"state is estimated on a start window of at least {MIN_START_SAMPLES} samples and the record "
+                        f"is scored after it, so it needs at least {2 * MIN_START_SAMPLES}; give a longer record, or "
+                        "initial_state rest (Rest())")
+    return max(MIN_START_SAMPLES, int(START_WINDOW * samples))
 
 
 class InitialState:
@@ -164,7 +171,7 @@ class Estimate(InitialState):
         return [estimate(r.window(0, self.scored_from(r))) for r in records]
 
     def scored_from(self, record):
-        return start_window(len(record.t))
+        return start_window(len(record.t), f"record {record.name!r}")
 
     def free_response(self, physics, record, x0, solver):
         y, J = record_jacobian(physics, [], record, x0, initial_state=True, solver=solver)
