@@ -192,12 +192,21 @@ class Diagnosis:
                                     f"{'it' if len(gone) == 1 else 'they'} stood in for)")
 
     @property
+    def _beam(self) -> str:
+        """Where the beam chose another path than the greedy one, as a clause of the verdict ("" where it did not)."""
+        greedy = next((end for end in self.ladder.beam if end.greedy), None)
+        if greedy is None or greedy.chosen:
+            return ""
+        return (f" (the greedy path ends at {' + '.join(greedy.effects)}, {100 * greedy.nrmse_validation:.2f} % on "
+                f"validation; this path, through a runner-up, beats it by the rule)")
+
+    @property
     def verdict(self) -> str:
         """One paragraph: what is missing, how the error fell, and what the residual on top says."""
         base, final = self.baseline, self.ladder.final
         if self.ladder.added:
             replaced = self.discovery is not None and bool(self.discovery.replaces)
-            found = (f"missing effect(s) found: {', '.join(self.ladder.found)}{self._removed}. Validation mismatch "
+            found = (f"missing effect(s) found: {', '.join(self.ladder.found)}{self._removed}{self._beam}. Validation mismatch "
                      f"{100 * base.nrmse_validation:.2f} % -> {100 * final.nrmse_validation:.2f} %. "
                      f"{'Last rung' if replaced else 'Final model'}: {final.equation}.")
         else:

@@ -16,8 +16,8 @@ residual of the paper on top (:func:`~torchpaml.analysis.hybrid_residual`, fitte
 whether it meets the goal, and what limits it: one of :data:`LIMITS`, with the measured numbers that show it, both
 written by the one rule :func:`~torchpaml._leaderboard.limit.limit_of` (through
 :func:`~torchpaml._leaderboard.runner.diagnosed_goal`).
-``tried`` holds every hypothesis the diagnosis fitted (:func:`tried_entries`): each rung's refitted candidates, then
-the probes of where the final grey box's mismatch points, each with its validation gain, its test figures, whether
+``tried`` holds every hypothesis the diagnosis fitted (:func:`tried_entries`): each rung's refitted candidates, the
+earlier effects tried out, the other paths of the ladder's beam, then the probes of where the final grey box's mismatch points, each with its validation gain, its test figures, whether
 it is kept in the final grey box, and whether the probes name its place; a protocol adds the hypotheses it tries
 beside the diagnosis (:func:`hypothesis_entry`). Every figure is :meth:`Benchmark.score`'s.
 """
@@ -117,7 +117,9 @@ def goal_entry(benchmark: Benchmark, models: list[dict], hybrid: dict, limit: st
 def tried_entries(benchmark: Benchmark, diagnosis: Diagnosis, tests: dict[str, Record]) -> list[dict]:
     """Every hypothesis the diagnosis fitted, each scored on ``tests`` (:meth:`Benchmark.scores`): on each rung of the
     ladder, the candidates it refitted (``stage`` ``"rung N"``) and the earlier effects tried out of its model
-    (``"without EFFECT"``, :mod:`~torchpaml._diagnostics.ranking.removal`), and then the probes of where the final
+    (``"without EFFECT"``, :mod:`~torchpaml._diagnostics.ranking.removal`), each other path of the ladder's beam
+    (``stage`` ``"beam"``, its effects joined by ``+``, its gain against the greedy path's end;
+    :mod:`~torchpaml._diagnostics.ranking.beam`), and then the probes of where the final
     grey box's mismatch points (``stage`` ``"probe"``, with its ``place``); ``validation_gain``: the share by which
     it lowers its rung's validation mismatch; ``kept``: it is in the final grey box; ``named``: the place the probes name.
     Every choice was made on the validation records; the test figures are reported, not chosen on."""
@@ -135,6 +137,11 @@ def tried_entries(benchmark: Benchmark, diagnosis: Diagnosis, tests: dict[str, R
         rows.append({"stage": f"rung {removal.rung + 1}", "place": None, "hypothesis": f"without {removal.effect}",
                      "validation_gain": 1.0 - removal.nrmse_validation / removal.against,
                      "rmse": benchmark.scores(removal.score, tests), "kept": removal.removed, "named": False})
+    greedy = next((end for end in ladder.beam if end.greedy), None)
+    for end in (e for e in ladder.beam if not (e.greedy and e.chosen) and e.score is not None):
+        rows.append({"stage": "beam", "place": None, "hypothesis": " + ".join(end.effects) or "the physics alone",
+                     "validation_gain": 1.0 - end.nrmse_validation / greedy.nrmse_validation,
+                     "rmse": benchmark.scores(end.score, tests), "kept": end.chosen, "named": False})
     probes = diagnosis.probes
     best = None if probes is None else probes.best
     for row in [] if probes is None else probes.rows:

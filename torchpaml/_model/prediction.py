@@ -67,16 +67,13 @@ def check_channels(model: FittedModel, record: Record) -> None:
                             "rename the columns, or declare them in the file's metadata line")
 
 
-def _estimated(model: FittedModel, record: Record) -> torch.Tensor:
-    if record.metadata.get("outputs_missing"):
-        raise DataError(f"the model starts each record from the state that best explains its outputs (initial_state "
-                        f"{model.initial_state.name!r}), and {record.name!r} has no output columns: add them")
-    return estimate_initial_state(model.physics, record, solver=Auto(start=model.solver))
-
-
 def initial_state_of(model: FittedModel, record: Record) -> torch.Tensor:
     """The state (n_state,) the model's policy starts ``record`` from (module docstring)."""
-    start = model.initial_state.validation_starts([record], lambda r: _estimated(model, r))[0]
+    if model.initial_state.estimated and record.metadata.get("outputs_missing"):
+        raise DataError(f"the model starts each record from the state that best explains its outputs (initial_state "
+                        f"{model.initial_state.name!r}), and {record.name!r} has no output columns: add them")
+    start = model.initial_state.validation_starts(
+        [record], lambda r: estimate_initial_state(model.physics, r, solver=Auto(start=model.solver)))[0]
     return model.physics.initial_state(1)[0] if start is None else start.reshape(-1)
 
 

@@ -164,6 +164,9 @@ def diagnosis_to_dict(diagnosis: Diagnosis) -> dict:
         "removals": [{"rung": r.rung, "effect": r.effect, "nrmse_validation": r.nrmse_validation,
                       "criterion": r.criterion, "removed": r.removed, "reason": r.reason}
                      for r in diagnosis.ladder.removals],
+        "beam": [{"effects": list(end.effects), "nrmse_validation": end.nrmse_validation, "criterion": end.criterion,
+                  "greedy": end.greedy, "chosen": end.chosen, "ended": end.ended, "reason": end.reason}
+                 for end in diagnosis.ladder.beam],
         "undecided": [{"model": ranking.baseline.name, "effect": e.effect, "seconds": e.undecided,
                        "reason": e.refit_reason} for ranking in diagnosis.ladder.rankings for e in ranking.undecided],
         "where_it_fails": {

@@ -12,6 +12,7 @@ import torch
 
 from torchpaml._budget import REFIT_BUDGET, RUNG_FIT_BUDGET, Budget
 from torchpaml._data import Record
+from torchpaml._diagnostics.ranking.beam import BEAM
 from torchpaml._diagnostics.ranking.occam import KINDS, kind, simpler_alternatives, simpler_first
 from torchpaml._diagnostics.ranking.steps import applicable, refit_shortlist, rung_fit, scored
 from torchpaml._diagnostics.ranking.refits import Refits, free_shape
@@ -62,6 +63,8 @@ class Ranker:
         refit_budget: each refit may take this many times the evaluations of its rung's fit (:mod:`torchpaml._budget`).
         fit_budget: a rung's fit from the optimum of the refit that found its effect may take this many times that
             refit's evaluations; over it, the rung keeps the refit's parameters (``Ranking.fit_over_budget``).
+        beam: how many models climb the ladder side by side, each rung's runner-ups on their own paths
+            (:mod:`~torchpaml._diagnostics.ranking.beam`; 1: the greedy ladder).
     """
 
     rule: SelectionRule = field(default_factory=SelectionRule)
@@ -70,11 +73,15 @@ class Ranker:
     max_nfev: int = 40
     refit_budget: float = REFIT_BUDGET
     fit_budget: float = RUNG_FIT_BUDGET
+    beam: int = BEAM
 
     def __post_init__(self):
         if isinstance(self.shortlist, bool) or not isinstance(self.shortlist, int) or self.shortlist < 1:
             raise ConfigurationError(f"shortlist must be at least 1 (how many best-scored candidates are refitted), "
                                      f"got {self.shortlist!r}")
+        if isinstance(self.beam, bool) or not isinstance(self.beam, int) or self.beam < 1:
+            raise ConfigurationError(f"beam must be at least 1 (how many models climb the ladder per rung; 1: the "
+                                     f"greedy ladder), got {self.beam!r}")
         if not (isinstance(self.max_nfev, int) and self.max_nfev >= 1):
             raise ConfigurationError(f"max_nfev must be a whole number of evaluations, at least 1; got {self.max_nfev!r}")
         for name in ("probe", "refit_budget", "fit_budget"):
