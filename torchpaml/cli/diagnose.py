@@ -23,6 +23,7 @@ from torchpaml._fit.initial_state import policy_named
 from torchpaml._errors import ConfigurationError
 from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._budget import DEFAULT_BUDGET, REFIT_BUDGET, RUNG_FIT_BUDGET
+from torchpaml._diagnostics.ranking.beam import BEAM
 from torchpaml.cli.progress import progress_lines
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import EFFECTS, AbstractEffect
@@ -78,8 +79,8 @@ def resolve_models(physics: str | AbstractPhysics, fix: list[str] | None, effect
     return _physics(physics, fix), _candidates(effects, candidates, discover)
 
 
-def check_options(shortlist: int, min_share: float, refit_budget: float = REFIT_BUDGET, budget: float | None = None
-                  ) -> None:
+def check_options(shortlist: int, min_share: float, refit_budget: float = REFIT_BUDGET, budget: float | None = None,
+                  beam: int = BEAM) -> None:
     """Refuse ranking options that cannot work, before any fit: the stages' own checks (``Ranker``, ``SelectionRule``,
     the diagnosis' budget), their messages naming the command's options."""
     from torchpaml._budget import check_budget
@@ -87,7 +88,7 @@ def check_options(shortlist: int, min_share: float, refit_budget: float = REFIT_
 
     try:
         SelectionRule(min_share=min_share)
-        Ranker(shortlist=shortlist, refit_budget=refit_budget)
+        Ranker(shortlist=shortlist, refit_budget=refit_budget, beam=beam)
         check_budget(budget)
     except ConfigurationError as error:
         raise ConfigurationError(f"--{error}") from None
@@ -102,6 +103,7 @@ def diagnose_command(
     effects: list[str] | None = None,
     candidates: list[AbstractEffect] | None = None,
     shortlist: int = 2,
+    beam: int = BEAM,
     criterion: Literal["bic", "aic"] = "bic",
     threshold: float = 10.0,
     min_share: float = 0.05,
@@ -132,6 +134,8 @@ def diagnose_command(
             ``candidates`` are given.
         candidates: user-defined effects (``AbstractEffect`` subclasses, config only).
         shortlist: how many of the best-scored candidates are refitted.
+        beam: how many models climb the ladder side by side, each rung's runner-ups on their own paths, validation
+            choosing among their ends (1: the greedy ladder).
         criterion: ``bic`` or ``aic`` on the validation record.
         threshold: criterion improvement needed to add an effect.
         min_share: relative fall of the validation mismatch needed to add an effect (0.05: 5 %).
@@ -164,9 +168,9 @@ def diagnose_command(
 
     if Path(out).is_file():
         raise ConfigurationError(f"--out {out} is an existing file; name a folder for the report (it is created if missing)")
-    check_options(shortlist, min_share, refit_budget, budget)
+    check_options(shortlist, min_share, refit_budget, budget, beam)
     model, chosen = resolve_models(physics, fix, effects, candidates, discover or discover_always)
-    stages = _stages(SelectionRule(criterion, threshold, min_share), shortlist, refit_budget, fit_budget, terms,
+    stages = _stages(SelectionRule(criterion, threshold, min_share), shortlist, beam, refit_budget, fit_budget, terms,
                      discover or discover_always, discover_always, probes)
     diagnosis = diagnose_to_folder(model, chosen, data, validation, out, hold=hold,
                                    initial_state=policy_named(initial_state), budget=budget, **stages)
@@ -185,8 +189,8 @@ def _announce(diagnosis, out: Path) -> None:
           + (f" and {models}" if models else ""))
 
 
-def _stages(rule: SelectionRule, shortlist: int, refit_budget: float, fit_budget: float, terms: list[str] | None,
-            discover: bool, always: bool, probes: bool) -> dict:
+def _stages(rule: SelectionRule, shortlist: int, beam: int, refit_budget: float, fit_budget: float,
+            terms: list[str] | None, discover: bool, always: bool, probes: bool) -> dict:
     """The stages of the command's options, as :func:`~torchpaml.diagnose`'s keywords: the ranker, the discoverer
     (``None`` without ``discover``) and the prober (``None`` without ``probes``)."""
     from torchpaml._diagnostics.discovery.discoverer import Discoverer
@@ -194,7 +198,7 @@ def _stages(rule: SelectionRule, shortlist: int, refit_budget: float, fit_budget
     from torchpaml._diagnostics.ranking.ranker import Ranker
     from torchpaml._physics.terms import TermLibrary
 
-    ranker = Ranker(rule=rule, shortlist=shortlist, refit_budget=refit_budget, fit_budget=fit_budget)
+    ranker = Ranker(rule=rule, shortlist=shortlist, refit_budget=refit_budget, fit_budget=fit_budget, beam=beam)
     discovery = Discoverer(library=TermLibrary(terms=tuple(terms or ())), always=always) if discover else None
     return {"ranker": ranker, "discovery": discovery, "prober": Prober() if probes else None}
 

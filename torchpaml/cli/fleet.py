@@ -168,7 +168,7 @@ def run_fleet(argv: list[str], prog: str = "torchpaml fleet") -> dict:
     plain.pop("config", None)
     fleet = {name: plain.pop(name, None) for name in FLEET_ARGUMENTS}
     checked = parser.instantiate(config)
-    check_options(checked.shortlist, checked.min_share, checked.refit_budget, checked.budget)
+    check_options(checked.shortlist, checked.min_share, checked.refit_budget, checked.budget, checked.beam)
     resolve_models(checked.physics, checked.fix, checked.effects, checked.candidates, checked.discover)
     if fleet["workers"] < 1:
         raise ConfigurationError(f"--workers must be at least 1, got {fleet['workers']}")
