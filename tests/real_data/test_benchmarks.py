@@ -117,8 +117,16 @@ def test_silverbox_run_writes_the_leaderboard_contract(tmp_path):
 def test_cascaded_tanks_run_writes_the_leaderboard_contract(tmp_path):
     result = cascaded.main(["--out", str(tmp_path)])
     check_contract(result, "cascaded_tanks", ["test"])
-    assert result["models"][-1]["rmse"]["test"] <= 0.40  # measured 0.327 V; the goal 0.20 V is not met
-    free = result["free_spill"]  # the spill left free goes instant and does not lower the figure: 0.338 V
+    assert result["models"][-1]["rmse"]["test"] <= 0.33  # measured 0.295 V; the goal 0.20 V is not met
+    # the beam finds the pair the greedy ladder misses: greedy takes lower_overflow before upper_overflow and ends at
+    # 7.25 % on validation (0.462 V on test); the runner-up's path adds both, 3.96 % (0.295 V)
+    assert result["found"] == ["sqrt_outflow_lower", "upper_overflow", "sqrt_outflow_upper", "lower_overflow"]
+    beam = [row for row in result["tried"] if row["stage"] == "beam"]
+    (greedy,) = [row for row in beam if row["validation_gain"] == 0.0]
+    (kept,) = [row for row in beam if row["kept"]]
+    assert "upper_overflow" not in greedy["hypothesis"] and kept["validation_gain"] > 0.3
+    assert kept["rmse"]["test"] < greedy["rmse"]["test"]
+    free = result["free_spill"]  # the spill left free goes instant and does not lower the figure: 0.299 V
     assert free["rate"] > 100 * cascaded.MAX_SPILL_RATE and free["rmse"]["test"] > 0.9 * result["models"][-1]["rmse"]["test"]
     tried = [row for row in result["tried"] if row["stage"] == "hypothesis"]  # figures, or why the fit failed
     assert [row["hypothesis"].split()[0] for row in tried] == ["sensor_offset"]
