@@ -45,6 +45,14 @@ def test_the_greedy_proposal_always_climbs_and_the_others_take_the_places_by_the
     assert [entry.effect for _, entry in next_beam(None, others, set(), 1, RULE)] == ["d"]
 
 
+@pytest.mark.parametrize("behind, climbs", [(1.9, True), (2.1, False)])
+def test_a_runner_up_climbs_only_within_reach_of_the_greedy_proposals_validation_mismatch(behind, climbs):
+    greedy = (0, evidence("a", -50.0, 0.05), frozenset({"a"}))
+    far = (0, evidence("b", -60.0, behind * 0.05), frozenset({"b"}))
+    climbing = next_beam(greedy, [far], set(), 3, RULE)
+    assert [entry.effect for _, entry in climbing] == (["a", "b"] if climbs else ["a"])
+
+
 def test_an_effects_own_states_are_charged_when_paths_are_compared():
     static, memory = score(-100.0, 0.05, Oscillator() + CoulombFriction(0.1)), score(-100.0, 0.05,
                                                                                      Oscillator() + Hysteresis())

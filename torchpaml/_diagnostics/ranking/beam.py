@@ -7,8 +7,8 @@ through the rung's runner-up would. So the ladder keeps up to ``beam`` models (:
    recommended one, then each other refitted candidate the selection rule accepts over that rung's baseline (physical,
    and not one of the recommended one's equivalents, which give its output), in the ranking's order.
 2. **The next beam** (:func:`next_beam`). The greedy path's proposal (the first of the greedy path's model) always
-   climbs; the other places go to the remaining proposals by their validation criterion, the model's own states
-   charged as parameters (:func:`charged`), lowest first. A proposal whose effects are those of a model the beam
+   climbs; the other places go to the remaining proposals within :data:`REACH` (2) of its validation mismatch, by
+   their validation criterion, the model's own states charged as parameters (:func:`charged`), lowest first. A proposal whose effects are those of a model the beam
    already holds or held is the same model and is passed over, and so is a model that a removal makes one of
    those (the greedy path's excepted).
 3. **The end** (:func:`chosen_end`). A model whose ranking recommends nothing ends. Among the ends, the greedy path's
@@ -29,10 +29,14 @@ from dataclasses import dataclass, field
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
 from torchpaml._diagnostics.ranking.selection import SelectionRule
 
-__all__ = ["BEAM", "BeamEnd", "charged", "chosen_end", "left_behind", "next_beam", "proposals"]
+__all__ = ["BEAM", "REACH", "BeamEnd", "charged", "chosen_end", "left_behind", "next_beam", "proposals"]
 
 #: How many models the ladder keeps per rung by default.
 BEAM = 3
+#: A runner-up climbs only where its validation mismatch is within this factor of the greedy proposal's: one more
+#: effect can close a factor of two (the cascaded tanks' better path starts 1.5 times behind), not an order of
+#: magnitude, and a path that far behind costs a whole ladder of fits.
+REACH = 2.0
 
 
 @dataclass(frozen=True)
@@ -94,14 +98,18 @@ def next_beam(greedy: tuple[int, EffectEvidence, frozenset[str]] | None,
               rule: SelectionRule) -> list[tuple[int, EffectEvidence]]:
     """The proposals that climb (module docstring, 2), each ``(model's place in the beam, proposal)``, the greedy
     path's first. ``greedy``: the greedy path's proposal, ``(place, proposal, the effects it would make)`` (``None``
-    where that path ended), which always climbs; ``others``: the other proposals; ``seen``: the effect sets the beam
+    where that path ended), which always climbs; ``others``: the other proposals, each within :data:`REACH` of the
+    greedy one's validation mismatch (of the lowest where the greedy path ended); ``seen``: the effect sets the beam
     holds or held (updated)."""
     chosen = []
     if greedy is not None:
         seen.add(greedy[2])
         chosen.append(greedy[:2])
+    best = greedy[1] if greedy is not None else min((o[1] for o in others), key=lambda e: e.refit.nrmse_validation,
+                                                   default=None)
     for place, entry, effects in sorted(others, key=lambda offer: charged(offer[1].refit, rule)):
-        if len(chosen) < width and effects not in seen:
+        near = entry.refit.nrmse_validation <= REACH * best.refit.nrmse_validation
+        if len(chosen) < width and near and effects not in seen:
             seen.add(effects)
             chosen.append((place, entry))
     return chosen
