@@ -206,8 +206,8 @@ class Diagnosis:
         base, final = self.baseline, self.ladder.final
         if self.ladder.added:
             replaced = self.discovery is not None and bool(self.discovery.replaces)
-            found = (f"missing effect(s) found: {', '.join(self.ladder.found)}{self._removed}{self._beam}. Validation mismatch "
-                     f"{100 * base.nrmse_validation:.2f} % -> {100 * final.nrmse_validation:.2f} %. "
+            found = (f"missing effect(s) found: {', '.join(self.ladder.found)}{self._removed}{self._beam}. "
+                     f"Validation mismatch {100 * base.nrmse_validation:.2f} % -> {100 * final.nrmse_validation:.2f} %. "
                      f"{'Last rung' if replaced else 'Final model'}: {final.equation}.")
         else:
             best = next((e for e in self.ranking.entries if e.improvement is not None), None)

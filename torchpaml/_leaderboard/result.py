@@ -17,9 +17,10 @@ whether it meets the goal, and what limits it: one of :data:`LIMITS`, with the m
 written by the one rule :func:`~torchpaml._leaderboard.limit.limit_of` (through
 :func:`~torchpaml._leaderboard.runner.diagnosed_goal`).
 ``tried`` holds every hypothesis the diagnosis fitted (:func:`tried_entries`): each rung's refitted candidates, the
-earlier effects tried out, the other paths of the ladder's beam, then the probes of where the final grey box's mismatch points, each with its validation gain, its test figures, whether
-it is kept in the final grey box, and whether the probes name its place; a protocol adds the hypotheses it tries
-beside the diagnosis (:func:`hypothesis_entry`). Every figure is :meth:`Benchmark.score`'s.
+earlier effects tried out, the other paths of the ladder's beam, then the probes of where the final grey box's
+mismatch points, each with its validation gain, its test figures, whether it is kept in the final grey box, and
+whether the probes name its place; a protocol adds the hypotheses it tries beside the diagnosis
+(:func:`hypothesis_entry`). Every figure is :meth:`Benchmark.score`'s.
 """
 
 from __future__ import annotations

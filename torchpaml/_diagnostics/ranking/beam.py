@@ -8,9 +8,9 @@ through the rung's runner-up would. So the ladder keeps up to ``beam`` models (:
    and not one of the recommended one's equivalents, which give its output), in the ranking's order.
 2. **The next beam** (:func:`next_beam`). The greedy path's proposal (the first of the greedy path's model) always
    climbs; the other places go to the remaining proposals within :data:`REACH` (2) of its validation mismatch, by
-   their validation criterion, the model's own states charged as parameters (:func:`charged`), lowest first. A proposal whose effects are those of a model the beam
-   already holds or held is the same model and is passed over, and so is a model that a removal makes one of
-   those (the greedy path's excepted).
+   their validation criterion, the model's own states charged as parameters (:func:`charged`), lowest first. A
+   proposal whose effects are those of a model the beam already holds or held is the same model and is passed over,
+   and so is a model that a removal makes one of those (the greedy path's excepted).
 3. **The end** (:func:`chosen_end`). A model whose ranking recommends nothing ends. Among the ends, the greedy path's
    is kept unless another end beats it by the selection rule itself (its charged criterion lower by more than the
    threshold, its validation mismatch lower by at least ``min_share``), and then the best such end by its charged

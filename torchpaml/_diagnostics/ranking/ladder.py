@@ -12,10 +12,9 @@ where they end (:mod:`~torchpaml._diagnostics.ranking.beam`).
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-
-import logging
 
 import torch
 
@@ -104,9 +103,10 @@ def model_ladder(
             offers += [(place, entry, frozenset([*path.found, entry.effect])) for entry in offered]
         lead = next((offer for offer in offers if offer[0] == greedy), None)
         climbing = next_beam(lead, [offer for offer in offers if offer is not lead], seen, beam, ranker.rule)
-        behind += [left_behind(tuple(path.found), path.final, ranker.rule, "its proposals lost the beam's places to "
-                               "better-scored ones, or are models the beam already holds") for place, path in enumerate(paths)
-                   if any(o[0] == place for o in offers) and all(p != place for p, _ in climbing)]
+        outrun = {place for place, _, _ in offers} - {place for place, _ in climbing}
+        behind += [left_behind(tuple(paths[place].found), paths[place].final, ranker.rule, "its proposals lost the "
+                               "beam's places to better-scored ones, or are models the beam already holds")
+                   for place in sorted(outrun)]
         next_paths, greedy = [], None
         for place, entry in climbing:
             is_greedy = lead is not None and entry is lead[1]
