@@ -82,3 +82,16 @@ def test_among_the_ends_that_beat_the_greedy_one_the_lowest_is_chosen():
 def test_a_beam_that_is_not_a_whole_number_of_at_least_one_is_refused(beam):
     with pytest.raises(ConfigurationError, match="beam must be at least 1"):
         Ranker(beam=beam)
+
+
+def test_the_verdict_names_the_greedy_end_only_where_another_path_is_chosen():
+    from types import SimpleNamespace
+
+    from torchpaml._diagnostics.diagnosis import Diagnosis
+
+    _, ends = chosen_end([(("a",), score(-100.0, 0.05), True), (("b", "c"), score(-150.0, 0.03), False)], RULE)
+    clause = Diagnosis._beam.fget(SimpleNamespace(ladder=SimpleNamespace(beam=ends)))
+    assert clause == (" (the greedy path ends at a, 5.00 % on validation; this path, through a runner-up, beats it by "
+                      "the rule)")
+    _, kept = chosen_end([(("a",), score(-100.0, 0.05), True), (("b",), score(-105.0, 0.049), False)], RULE)
+    assert Diagnosis._beam.fget(SimpleNamespace(ladder=SimpleNamespace(beam=kept))) == ""
