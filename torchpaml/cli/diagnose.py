@@ -130,12 +130,10 @@ def diagnose_command(
         physics: a library physics name (oscillator, pendulum: every parameter learnable), or in a
             config file a physics object (``class_path``/``init_args``; its own ``learn``).
         fix: ``NAME=VALUE`` parameters held fixed at VALUE (repeat ``--fix``).
-        effects: library effects to rank (repeat ``--effect NAME``); default all, or none when
-            ``candidates`` are given.
+        effects: library effects to rank (repeat ``--effect NAME``); default all, or none when ``candidates`` are given.
         candidates: user-defined effects (``AbstractEffect`` subclasses, config only).
         shortlist: how many of the best-scored candidates are refitted.
-        beam: how many models climb the ladder side by side, each rung's runner-ups on their own paths, validation
-            choosing among their ends (1: the greedy ladder).
+        beam: how many models climb the ladder side by side, validation choosing their end (1: the greedy ladder).
         criterion: ``bic`` or ``aic`` on the validation record.
         threshold: criterion improvement needed to add an effect.
         min_share: relative fall of the validation mismatch needed to add an effect (0.05: 5 %).
