@@ -120,7 +120,8 @@ def chosen_end(ends: list[tuple[tuple[str, ...], ModelScore, bool]], rule: Selec
     index, and every end as a :class:`BeamEnd` that says why."""
     greedy = next(i for i, (_, _, is_greedy) in enumerate(ends) if is_greedy)
     base = ends[greedy][1]
-    beating = [i for i, (_, score, _) in enumerate(ends) if i != greedy and _beats(score, base, rule)]
+    beating = [i for i, (_, score, _) in enumerate(ends)
+               if i != greedy and rule.accepts(base, score, own_states(score) - own_states(base), nested=False)]
     choice = min(beating, key=lambda i: charged(ends[i][1], rule)) if beating else greedy
     described = []
     for i, (effects, score, is_greedy) in enumerate(ends):
@@ -137,10 +138,3 @@ def chosen_end(ends: list[tuple[tuple[str, ...], ModelScore, bool]], rule: Selec
         described.append(BeamEnd(tuple(effects), score.nrmse_validation, charged(score, rule), is_greedy,
                                  i == choice, reason, score=score))
     return choice, described
-
-
-def _beats(rival: ModelScore, current: ModelScore, rule: SelectionRule) -> bool:
-    """``rival``'s charged criterion is lower than ``current``'s by more than the threshold and its validation
-    mismatch lower by at least ``min_share`` (the rule without its training clause: the two are not nested)."""
-    share = 1 - rival.nrmse_validation / current.nrmse_validation
-    return charged(current, rule) - charged(rival, rule) > rule.threshold and share >= rule.min_share

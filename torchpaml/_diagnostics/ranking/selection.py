@@ -55,11 +55,13 @@ class SelectionRule:
         """The criterion's charge for ``parameters`` unknowns on ``samples`` samples: $k \\ln n$ (BIC), $2k$ (AIC)."""
         return parameters * math.log(samples) if self.criterion == "bic" else 2.0 * parameters
 
-    def why_not(self, current, candidate, extra: int = 0) -> str | None:
+    def why_not(self, current, candidate, extra: int = 0, nested: bool = True) -> str | None:
         """Why ``candidate`` is not accepted over ``current`` (both :class:`~torchpaml.ModelScore`),
         or ``None`` when it is. ``extra``: more unknowns the candidate has beyond its fitted parameters (an effect's
-        own states), each charged as one more parameter in its criterion (``candidate.samples`` samples)."""
-        if candidate.nrmse_train > current.nrmse_train * (1 + TRAINING_SLACK):
+        own states), each charged as one more parameter in its criterion (``candidate.samples`` samples; fewer where
+        negative). ``nested=False`` drops the training clause, for two models neither of which extends the other
+        (the beam's ends): a lower training mismatch is then not owed."""
+        if nested and candidate.nrmse_train > current.nrmse_train * (1 + TRAINING_SLACK):
             return "its refit ended above the current model's training mismatch (a failed optimisation)"
         charge = self.penalty(candidate.samples, extra) if extra and candidate.samples else 0.0
         gain = current.criterion - candidate.criterion - charge
@@ -70,6 +72,6 @@ class SelectionRule:
                     f"validation mismatch by {100 * share:.1f} % (needed {100 * self.min_share:g} %)")
         return None
 
-    def accepts(self, current, candidate, extra: int = 0) -> bool:
-        """Whether ``candidate`` is better than ``current`` by this rule (``extra``: :meth:`why_not`)."""
-        return self.why_not(current, candidate, extra) is None
+    def accepts(self, current, candidate, extra: int = 0, nested: bool = True) -> bool:
+        """Whether ``candidate`` is better than ``current`` by this rule (``extra``, ``nested``: :meth:`why_not`)."""
+        return self.why_not(current, candidate, extra, nested) is None
