@@ -151,3 +151,20 @@ def test_a_physics_with_a_kink_is_differentiated_across_it_in_c(solver):
     error = _relative_columns(J, engine_J)
     assert error < DIFFERENCED, f"{error:.2e}"
     assert J.shape == exact.shape == engine_J.shape
+
+
+def test_a_difference_whose_side_blows_up_is_left_to_the_engine():
+    """A kinked physics' Jacobian is central differences of whole simulations: where one side's simulation blows up
+    past the engine's bound while staying finite (the cascaded tanks at RK4's edge of stability gave sides of ~1e250
+    and a Jacobian column of 6e256, whose square overflowed the trust region's scaling into NaN unknowns), there is
+    no derivative to give, and the engine, which names the blow-up, takes the point."""
+    import numpy as np
+
+    t, u, x0 = torch.arange(5.0), torch.zeros(1, 5, 1), torch.zeros(1, 1)
+
+    def simulate(parameters, columns, t, u, x0):
+        y = torch.full((1, len(t), 1), 1.0, dtype=torch.float64)
+        return (1e250 * y if parameters[0] > 1.0 else y), None
+
+    assert jacobians._differenced(simulate, np.array([0.5]), [0], t, u, x0) is not None  # both sides tame
+    assert jacobians._differenced(simulate, np.array([1.0]), [0], t, u, x0) is None  # the upper side past 1e8

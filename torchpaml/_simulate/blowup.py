@@ -6,13 +6,21 @@ import torch
 
 from torchpaml._errors import SimulationError
 
-__all__ = ["checked_output"]
+__all__ = ["BLOWUP", "blown_up", "checked_output"]
+
+#: The bound on a simulated output's magnitude, beyond which the simulation counts as blown up.
+BLOWUP = 1e8
 
 
-def checked_output(y: torch.Tensor, t: torch.Tensor, blowup: float = 1e8) -> torch.Tensor:
+def blown_up(y: torch.Tensor, blowup: float = BLOWUP) -> torch.Tensor:
+    """Where ``y`` is non-finite or beyond ``blowup`` in magnitude (a boolean tensor of ``y``'s shape)."""
+    return ~torch.isfinite(y) | (y.abs() > blowup)
+
+
+def checked_output(y: torch.Tensor, t: torch.Tensor, blowup: float = BLOWUP) -> torch.Tensor:
     """``y`` (batch, time, n_output) itself; raises :class:`~torchpaml.SimulationError` naming the time where it is
     non-finite or beyond ``blowup``."""
-    bad = ~torch.isfinite(y) | (y.abs() > blowup)
+    bad = blown_up(y, blowup)
     if bool(bad.any()):
         k = int(bad.any(dim=0).any(dim=-1).nonzero()[0])
         raise SimulationError(

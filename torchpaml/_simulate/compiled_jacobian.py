@@ -36,6 +36,7 @@ import numpy as np
 import sympy
 import torch
 
+from torchpaml._simulate.blowup import blown_up
 from torchpaml._simulate.compiled import (RATES_ARGUMENTS, _Compiled, c_function, compiled_form, rates_function,
                                           sequential_states, warn_once)
 from torchpaml._simulate.differences import difference_step
@@ -373,7 +374,7 @@ class _Sensitivities:
                  states: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None] | None:
         """Outputs (batch, time, n_output), their Jacobian (batch, time, n_output, columns) and, with ``states``,
         the states (batch, time, n_state) by ``method`` (``"rk4"``, ``"trbdf2"``); ``None`` where TR-BDF2's Newton
-        does not converge (the engine then says where)."""
+        does not converge (the engine then says where), a side of a difference included."""
         batch, samples, _ = u.shape
         arrays = [np.ascontiguousarray(a.detach().to(torch.float64).numpy()) for a in (t, u, x0)]
         column = np.array(columns, dtype=np.intc)
@@ -426,7 +427,7 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
     unless ``kinks`` asks for the exact one-sided slopes (:class:`_Sensitivities`); ``None`` where it is left to the
     shooting engine: another method, a physics that does not compile
     (:func:`~torchpaml._simulate.compiled.compiled_form`), a parameter that is not one scalar, a TR-BDF2 stage whose
-    Newton fails, or an output that does not stay finite (the engine then says where)."""
+    Newton fails, or an output that does not stay finite (the engine then says where), a side of a difference included."""
     compiled = _sensitivities(physics, solver) if len(t) > 1 else None
     if compiled is None:
         return None
@@ -439,7 +440,7 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
         done = _differenced(simulate, form.parameters(physics), columns, t, u, x0)
     else:
         done = simulate(form.parameters(physics), columns, t, u, x0)
-    if done is None or not (bool(torch.isfinite(done[0]).all()) and bool(torch.isfinite(done[1]).all())):
+    if done is None or bool(blown_up(done[0]).any()) or not bool(torch.isfinite(done[1]).all()):
         return None
     return done[0].to(x0.dtype), done[1].to(x0.dtype)
 
@@ -450,9 +451,9 @@ def _differenced(simulate: Callable, parameters: np.ndarray, columns: list[int],
     :class:`_Sensitivities`): each column $(\hat y(\theta + s e_j) - \hat y(\theta - s e_j))/2s$ with the steps
     of the engine's differences (:func:`~torchpaml._simulate.differences.difference_step` of $\rho_j$, of
     $\max|x_0|$ for an initial state's), 2(p + n) + 1 runs in C."""
-    def output(p: np.ndarray, x: torch.Tensor) -> torch.Tensor | None:
+    def output(p: np.ndarray, x: torch.Tensor) -> torch.Tensor | None:  # None where a side blows up
         done = simulate(p, [], t, u, x)
-        return None if done is None else done[0]
+        return None if done is None or bool(blown_up(done[0]).any()) else done[0]
 
     y = output(parameters, x0)
     state_step = difference_step(float(x0.detach().abs().max()))
