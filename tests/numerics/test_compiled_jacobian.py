@@ -153,12 +153,15 @@ def test_a_physics_with_a_kink_is_differentiated_across_it_in_c(solver):
     assert J.shape == exact.shape == engine_J.shape
 
 
-def test_a_difference_whose_side_blows_up_is_left_to_the_engine():
+def test_a_difference_whose_side_blows_up_rejects_the_point():
     """A kinked physics' Jacobian is central differences of whole simulations: where one side's simulation blows up
-    past the engine's bound while staying finite (the cascaded tanks at RK4's edge of stability gave sides of ~1e250
-    and a Jacobian column of 6e256, whose square overflowed the trust region's scaling into NaN unknowns), there is
-    no derivative to give, and the engine, which names the blow-up, takes the point."""
+    past the engine's bound while the output stays finite (the cascaded tanks at RK4's edge of stability gave sides
+    of ~1e250 and a Jacobian column of 6e256, whose square overflowed the trust region's scaling into NaN unknowns),
+    the output has no usable derivative, and the point is refused as a blow-up is; an output that blows up itself is
+    refused as the engine refuses it."""
     import numpy as np
+
+    from torchpaml import SimulationError
 
     t, u, x0 = torch.arange(5.0), torch.zeros(1, 5, 1), torch.zeros(1, 1)
 
@@ -166,5 +169,9 @@ def test_a_difference_whose_side_blows_up_is_left_to_the_engine():
         y = torch.full((1, len(t), 1), 1.0, dtype=torch.float64)
         return (1e250 * y if parameters[0] > 1.0 else y), None
 
-    assert jacobians._differenced(simulate, np.array([0.5]), [0], t, u, x0) is not None  # both sides tame
-    assert jacobians._differenced(simulate, np.array([1.0]), [0], t, u, x0) is None  # the upper side past 1e8
+    y, J = jacobians._differenced(simulate, np.array([0.5]), [0], t, u, x0)  # both sides tame
+    assert float(J.abs().max()) == 0.0 and float(y.max()) == 1.0
+    with pytest.raises(SimulationError, match="edge of the step's stability"):
+        jacobians._differenced(simulate, np.array([1.0]), [0], t, u, x0)  # the upper side past 1e8
+    with pytest.raises(SimulationError, match="blew up"):
+        jacobians._differenced(simulate, np.array([2.0]), [0], t, u, x0)  # the output itself, as the engine says

@@ -36,7 +36,8 @@ import numpy as np
 import sympy
 import torch
 
-from torchpaml._simulate.blowup import blown_up
+from torchpaml._errors import SimulationError
+from torchpaml._simulate.blowup import blown_up, checked_output
 from torchpaml._simulate.compiled import (RATES_ARGUMENTS, _Compiled, c_function, compiled_form, rates_function,
                                           sequential_states, warn_once)
 from torchpaml._simulate.differences import difference_step
@@ -427,7 +428,9 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
     unless ``kinks`` asks for the exact one-sided slopes (:class:`_Sensitivities`); ``None`` where it is left to the
     shooting engine: another method, a physics that does not compile
     (:func:`~torchpaml._simulate.compiled.compiled_form`), a parameter that is not one scalar, a TR-BDF2 stage whose
-    Newton fails, or an output that does not stay finite (the engine then says where), a side of a difference included."""
+    Newton fails, or a Jacobian that is not finite. Raises :class:`~torchpaml.SimulationError` where the output
+    blows up (:func:`~torchpaml._simulate.blowup.checked_output`, as the engine does, without its slower way there)
+    or where only a side of a difference does (:func:`_differenced`)."""
     compiled = _sensitivities(physics, solver) if len(t) > 1 else None
     if compiled is None:
         return None
@@ -440,7 +443,10 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
         done = _differenced(simulate, form.parameters(physics), columns, t, u, x0)
     else:
         done = simulate(form.parameters(physics), columns, t, u, x0)
-    if done is None or bool(blown_up(done[0]).any()) or not bool(torch.isfinite(done[1]).all()):
+    if done is None:
+        return None
+    checked_output(done[0], t)  # raises where the output blows up, naming the time, as the engine does
+    if not bool(torch.isfinite(done[1]).all()):
         return None
     return done[0].to(x0.dtype), done[1].to(x0.dtype)
 
@@ -450,12 +456,22 @@ def _differenced(simulate: Callable, parameters: np.ndarray, columns: list[int],
     r"""The outputs and their Jacobian by central differences of whole compiled simulations (a kinked physics,
     :class:`_Sensitivities`): each column $(\hat y(\theta + s e_j) - \hat y(\theta - s e_j))/2s$ with the steps
     of the engine's differences (:func:`~torchpaml._simulate.differences.difference_step` of $\rho_j$, of
-    $\max|x_0|$ for an initial state's), 2(p + n) + 1 runs in C."""
-    def output(p: np.ndarray, x: torch.Tensor) -> torch.Tensor | None:  # None where a side blows up
+    $\max|x_0|$ for an initial state's), 2(p + n) + 1 runs in C.
+
+    Raises :class:`~torchpaml.SimulationError` where a side blows up (beyond the engine's bound,
+    :data:`~torchpaml._simulate.blowup.BLOWUP`) while the output itself does not: the parameters sit at the edge of
+    the step's stability, where a perturbation of $10^{-8}$ grows without bound over the record, and the output has
+    no usable derivative at this resolution (a fit's trust region then rejects the point as it rejects a blow-up).
+    On the cascaded tanks such sides reached ~1e250, and the Jacobian column of 6e256 they gave overflowed the trust
+    region's scaling into NaN unknowns."""
+    def output(p: np.ndarray, x: torch.Tensor) -> torch.Tensor | None:
         done = simulate(p, [], t, u, x)
-        return None if done is None or bool(blown_up(done[0]).any()) else done[0]
+        return None if done is None else done[0]
 
     y = output(parameters, x0)
+    if y is None:
+        return None
+    checked_output(y, t)  # raises where the output itself blows up, naming the time
     state_step = difference_step(float(x0.detach().abs().max()))
     differences = []
     for column in columns:
@@ -470,8 +486,12 @@ def _differenced(simulate: Callable, parameters: np.ndarray, columns: list[int],
             direction = torch.zeros_like(x0)
             direction[..., -1 - column] = step
             sides = output(parameters, x0 + direction), output(parameters, x0 - direction)
-        if y is None or sides[0] is None or sides[1] is None:
+        if sides[0] is None or sides[1] is None:
             return None
+        if bool(blown_up(sides[0]).any()) or bool(blown_up(sides[1]).any()):
+            raise SimulationError("a side of the Jacobian's central difference blew up where the output did not: the "
+                                  "parameters sit at the edge of the step's stability (raise substeps, or use "
+                                  "solver=TRBDF2() for stiff physics)")
         differences.append((sides[0] - sides[1]) / (2 * step))
     J = torch.stack(differences, dim=-1) if differences else y.new_zeros(*y.shape, 0)
     return y, J
