@@ -10,7 +10,6 @@ import math
 
 import torch
 
-from torchpaml import TRBDF2
 from torchpaml._diagnostics.ranking import refits as refits_module
 
 from torchpaml import ConstantForce, InputLag, QuadraticStiffness, Simulated, default_effects, diagnose
@@ -48,8 +47,9 @@ def test_with_the_lag_among_the_candidates_the_ladder_adds_it_and_the_caveat_goe
 def test_a_lag_the_data_do_not_have_is_a_failed_refit_not_a_failed_diagnosis(monkeypatch):
     """On the oscillator with its constant force already found, the data hold no lag: its first-order score
     cannot pass the rule, so it is not refitted. Refitted all the same (the gate opened), it drives tau towards 0,
-    a rate far beyond what RK4's step integrates: the fit's stability check hands it to the implicit TR-BDF2, the
-    refit improves nothing and is not recommended, and the ranking goes on."""
+    a rate at the edge of what RK4's step integrates (a difference's side past it is one-sided, a step beyond it
+    rejected): the refit ends with finite parameters, improves nothing and is not recommended, and the ranking goes
+    on."""
     train, validation, _ = records(truth("constant_force", 0.5), 1.0)
     physics_with_force = (physics() + ConstantForce()).assign(**{"constant_force.f0": 0.5})
     gated = rank_missing_effects(physics_with_force, [InputLag()], train, validation)
@@ -58,6 +58,7 @@ def test_a_lag_the_data_do_not_have_is_a_failed_refit_not_a_failed_diagnosis(mon
     ranking = rank_missing_effects(physics_with_force, [InputLag(), QuadraticStiffness()], train, validation,
                                    shortlist=2, refit_budget=1000.0)  # the stiff refit's whole path, not its budget
     lag = next(e for e in ranking.entries if e.effect == "input_lag")
-    assert lag.failure is None and isinstance(lag.refit.solver, TRBDF2) and lag.improvement < 0
+    assert lag.failure is None and lag.improvement < 0, (lag.failure, lag.improvement)
+    assert all(math.isfinite(v) for v in lag.refit.parameters.values()), lag.refit.parameters
     assert ranking.recommended is None  # and the other candidate was refitted, and not accepted
     assert next(e for e in ranking.entries if e.effect == "quadratic_stiffness").refit is not None

@@ -153,25 +153,28 @@ def test_a_physics_with_a_kink_is_differentiated_across_it_in_c(solver):
     assert J.shape == exact.shape == engine_J.shape
 
 
-def test_a_difference_whose_side_blows_up_rejects_the_point():
+def test_a_difference_whose_side_blows_up_takes_the_other_side():
     """A kinked physics' Jacobian is central differences of whole simulations: where one side's simulation blows up
-    past the engine's bound while the output stays finite (the cascaded tanks at RK4's edge of stability gave sides
-    of ~1e250 and a Jacobian column of 6e256, whose square overflowed the trust region's scaling into NaN unknowns),
-    the output has no usable derivative, and the point is refused as a blow-up is; an output that blows up itself is
-    refused as the engine refuses it."""
+    past the engine's bound while the output stays finite (the cascaded tanks at RK4's edge of stability gave a side
+    of ~1e250 and a central column of 6e256, whose square overflowed the trust region's scaling into NaN unknowns),
+    the column is the other side's one-sided difference; where both sides blow up, or the output itself, the point
+    is refused as the engine refuses a blow-up."""
     import numpy as np
 
     from torchpaml import SimulationError
 
     t, u, x0 = torch.arange(5.0), torch.zeros(1, 5, 1), torch.zeros(1, 1)
 
-    def simulate(parameters, columns, t, u, x0):
-        y = torch.full((1, len(t), 1), 1.0, dtype=torch.float64)
-        return (1e250 * y if parameters[0] > 1.0 else y), None
+    def simulate(parameters, columns, t, u, x0):  # y = p up to 1, a blow-up beyond, except at exactly p = 3
+        p = float(parameters[0])
+        y = torch.full((1, len(t), 1), p, dtype=torch.float64)
+        return (1e250 * y if p > 1.0 and p != 3.0 else y), None
 
-    y, J = jacobians._differenced(simulate, np.array([0.5]), [0], t, u, x0)  # both sides tame
-    assert float(J.abs().max()) == 0.0 and float(y.max()) == 1.0
-    with pytest.raises(SimulationError, match="edge of the step's stability"):
-        jacobians._differenced(simulate, np.array([1.0]), [0], t, u, x0)  # the upper side past 1e8
-    with pytest.raises(SimulationError, match="blew up"):
+    y, J = jacobians._differenced(simulate, np.array([0.5]), [0], t, u, x0)  # both sides tame: the central slope
+    assert float(J.max()) == pytest.approx(1.0, rel=1e-6) and float(y.max()) == 0.5
+    y, J = jacobians._differenced(simulate, np.array([1.0]), [0], t, u, x0)  # the upper side past 1e8: the lower's
+    assert float(J.max()) == pytest.approx(1.0, rel=1e-6) and float(J.min()) == float(J.max())
+    with pytest.raises(SimulationError, match="both sides"):
+        jacobians._differenced(simulate, np.array([3.0]), [0], t, u, x0)
+    with pytest.raises(SimulationError, match="simulated output blew up"):
         jacobians._differenced(simulate, np.array([2.0]), [0], t, u, x0)  # the output itself, as the engine says

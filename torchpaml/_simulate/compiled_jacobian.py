@@ -430,7 +430,7 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
     (:func:`~torchpaml._simulate.compiled.compiled_form`), a parameter that is not one scalar, a TR-BDF2 stage whose
     Newton fails, or a Jacobian that is not finite. Raises :class:`~torchpaml.SimulationError` where the output
     blows up (:func:`~torchpaml._simulate.blowup.checked_output`, as the engine does, without its slower way there)
-    or where only a side of a difference does (:func:`_differenced`)."""
+    or where both sides of a difference do (:func:`_difference`)."""
     compiled = _sensitivities(physics, solver) if len(t) > 1 else None
     if compiled is None:
         return None
@@ -458,12 +458,7 @@ def _differenced(simulate: Callable, parameters: np.ndarray, columns: list[int],
     of the engine's differences (:func:`~torchpaml._simulate.differences.difference_step` of $\rho_j$, of
     $\max|x_0|$ for an initial state's), 2(p + n) + 1 runs in C.
 
-    Raises :class:`~torchpaml.SimulationError` where a side blows up (beyond the engine's bound,
-    :data:`~torchpaml._simulate.blowup.BLOWUP`) while the output itself does not: the parameters sit at the edge of
-    the step's stability, where a perturbation of $10^{-8}$ grows without bound over the record, and the output has
-    no usable derivative at this resolution (a fit's trust region then rejects the point as it rejects a blow-up).
-    On the cascaded tanks such sides reached ~1e250, and the Jacobian column of 6e256 they gave overflowed the trust
-    region's scaling into NaN unknowns."""
+    Where one side blows up (:func:`_difference`), the column is the other side's one-sided difference."""
     def output(p: np.ndarray, x: torch.Tensor) -> torch.Tensor | None:
         done = simulate(p, [], t, u, x)
         return None if done is None else done[0]
@@ -488,13 +483,26 @@ def _differenced(simulate: Callable, parameters: np.ndarray, columns: list[int],
             sides = output(parameters, x0 + direction), output(parameters, x0 - direction)
         if sides[0] is None or sides[1] is None:
             return None
-        if bool(blown_up(sides[0]).any()) or bool(blown_up(sides[1]).any()):
-            raise SimulationError("a side of the Jacobian's central difference blew up where the output did not: the "
-                                  "parameters sit at the edge of the step's stability (raise substeps, or use "
-                                  "solver=TRBDF2() for stiff physics)")
-        differences.append((sides[0] - sides[1]) / (2 * step))
+        differences.append(_difference(y, sides, step))
     J = torch.stack(differences, dim=-1) if differences else y.new_zeros(*y.shape, 0)
     return y, J
+
+
+def _difference(y: torch.Tensor, sides: tuple[torch.Tensor, torch.Tensor], step: float) -> torch.Tensor:
+    r"""One column: the central difference $(\hat y_+ - \hat y_-)/2s$ of the two sides; where one side blows up
+    (beyond the engine's bound, :data:`~torchpaml._simulate.blowup.BLOWUP`) while the output does not, the
+    parameters sit at the edge of the step's stability and the column is the other side's one-sided difference
+    (the slope on the side the step resolves). On the cascaded tanks such a side reached ~1e250, and the central
+    column of 6e256 it gave overflowed the trust region's scaling into NaN unknowns. Raises
+    :class:`~torchpaml.SimulationError` where both sides blow up."""
+    up, down = (bool(blown_up(side).any()) for side in sides)
+    if not (up or down):
+        return (sides[0] - sides[1]) / (2 * step)
+    if up and down:
+        raise SimulationError("both sides of the Jacobian's central difference blew up where the output did not: "
+                              "the parameters sit at the edge of the step's stability (raise substeps, or use "
+                              "solver=TRBDF2() for stiff physics)")
+    return (y - sides[1]) / step if up else (sides[0] - y) / step
 
 
 def compiled_states(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, solver: Method,
