@@ -40,8 +40,9 @@ from torchpaml._diagnostics.mismatch.result import DISCOVERED, MismatchProbes, P
 from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE
 from torchpaml._diagnostics.ranking.ranker import Ranker
 from torchpaml._diagnostics.ranking.refits import Refits
+from torchpaml._diagnostics.ranking.steps import refit_bounds
 from torchpaml._diagnostics.ranking.scoring import as_records, score_model, scored_mismatch
-from torchpaml._diagnostics.ranking.steps import applicable, placed, refit_bounds, scored
+from torchpaml._diagnostics.ranking.steps import applicable, placed, scored
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
 from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._fit.initial_state import START_WINDOW, Estimate

@@ -48,8 +48,8 @@ from __future__ import annotations
 
 
 import copy
-import logging
 import math
+import logging
 from collections.abc import Sequence
 
 import torch
@@ -57,6 +57,7 @@ import torch
 from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Record
 from torchpaml._metrics import sample_scales
+from torchpaml._parameters import describe_parameters
 from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE, Engines, by_promise, first_order
 from torchpaml._diagnostics.ranking.refits import Refits, cannot_pass
 from torchpaml._diagnostics.results import EffectEvidence
@@ -64,7 +65,6 @@ from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._errors import ConfigurationError, SimulationError
 from torchpaml._fit.initial_state import InitialState
 from torchpaml._fit.physics_fit import PhysicsEstimate, fit_physics
-from torchpaml._parameters import describe_parameters
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import AbstractEffect
 from torchpaml._simulate.solvers import Auto, Solver
