@@ -40,7 +40,6 @@ from torchpaml._diagnostics.mismatch.result import DISCOVERED, MismatchProbes, P
 from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE
 from torchpaml._diagnostics.ranking.ranker import Ranker
 from torchpaml._diagnostics.ranking.refits import Refits
-from torchpaml._diagnostics.ranking.steps import refit_bounds
 from torchpaml._diagnostics.ranking.scoring import as_records, score_model, scored_mismatch
 from torchpaml._diagnostics.ranking.steps import applicable, placed, scored
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
@@ -200,8 +199,7 @@ def _from_far_strength(effects: list, first: ModelScore, ranking: Ranking, train
         entry = EffectEvidence(effect.name, effect.equation, 0.0, 1, effect.far_strength,
                                refit_reason="refitted from its far strength on the physics alone")
         extended = copy.deepcopy(first.model) + copy.deepcopy(effect)
-        bounds = {f"{effect.name}.{name}": limits for name, limits in refit_bounds(effect, train).items()
-                  if f"{effect.name}.{name}" in extended.learnable_names()}
+        bounds = {f"{effect.name}.{name}": limits for name, limits in effect.bounds(train).items()}
         refits.run(entry, extended, f"{effect.name}.{effect.strength}", None, bounds)
         if entry.refit is None:
             log.info("%s from %s = %g: no refit (%s)", effect.name, effect.strength, effect.far_strength,

@@ -229,10 +229,8 @@ class Refits:
             return
         log.info("refitting %s + %s (at most %s)", self.name, entry.effect, budget.describe())
         try:
-            low, high = bounds.get(strength, (-math.inf, math.inf))  # a start of the wrong sign starts at the range
-            start = min(max(entry.first_order_strength, low), high)
-            refit = refit_effect(extended, strength, start, self.train, self.max_nfev, self.initial_state, self.fit,
-                                 move, self.ftol, budget, bounds)
+            refit = refit_effect(extended, strength, entry.first_order_strength, self.train, self.max_nfev,
+                                 self.initial_state, self.fit, move, self.ftol, budget, bounds)
             entry.seconds = budget.elapsed
         except OverBudget as over:
             entry.undecided, entry.refit_reason = over.seconds, f"undecided: over budget ({over.seconds:.1f} s)"

@@ -48,7 +48,6 @@ from __future__ import annotations
 
 
 import copy
-import math
 import logging
 from collections.abc import Sequence
 
@@ -57,7 +56,6 @@ import torch
 from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Record
 from torchpaml._metrics import sample_scales
-from torchpaml._parameters import describe_parameters
 from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE, Engines, by_promise, first_order
 from torchpaml._diagnostics.ranking.refits import Refits, cannot_pass
 from torchpaml._diagnostics.results import EffectEvidence
@@ -69,7 +67,7 @@ from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import AbstractEffect
 from torchpaml._simulate.solvers import Auto, Solver
 
-__all__ = ["applicable", "refit_bounds", "refit_shortlist", "rung_fit", "scored"]
+__all__ = ["applicable", "refit_shortlist", "rung_fit", "scored"]
 
 log = logging.getLogger(__name__)
 
@@ -150,22 +148,6 @@ def applicable(physics: AbstractPhysics, candidates: Sequence[AbstractEffect]
     return [c for c in candidates if c.name not in skipped], skipped
 
 
-def refit_bounds(candidate: AbstractEffect, records: list[Record]) -> dict[str, tuple[float, float]]:
-    """The bounds of ``candidate``'s refits: its own (:meth:`~torchpaml.AbstractEffect.bounds`, a state the sampling
-    resolves) within each learnable parameter's declared physical range (``physical`` of
-    :class:`~torchpaml.PhysicalParameter`). A refit thus finds the best physical model: free of its range, a fit of the
-    cascaded tanks' four effects from zero strengths ended in the basin of a negative Torricelli outflow (4.84 % on
-    training, against 0.38 % for the fit held to the ranges, which recovered the simulated truth)."""
-    bounds = dict(candidate.bounds(records))
-    for row in describe_parameters(candidate):
-        if not row["learnable"] or "physical" not in row:
-            continue
-        low, high = row["physical"]
-        own_low, own_high = bounds.get(row["name"], (-math.inf, math.inf))
-        bounds[row["name"]] = (max(low, own_low), min(high, own_high))
-    return bounds
-
-
 def scored(base: AbstractPhysics, candidates: list[AbstractEffect], train: list[Record], fit: PhysicsEstimate,
             probe: float) -> tuple[list[EffectEvidence], dict[str, tuple]]:
     """Each candidate's first-order evidence, and, for each one scored, ``(base + candidate, its strength's name, the
@@ -191,7 +173,7 @@ def scored(base: AbstractPhysics, candidates: list[AbstractEffect], train: list[
         extended, (score, order, start, move, acting) = best
         entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start, acting=acting,
                                       states=len(candidate.own_states), generic=candidate.generic))
-        bounds = {f"{candidate.name}.{name}": limits for name, limits in refit_bounds(candidate, train).items()
+        bounds = {f"{candidate.name}.{name}": limits for name, limits in candidate.bounds(train).items()
                   if f"{candidate.name}.{name}" in extended.learnable_names()}
         extended_models[candidate.name] = (extended, strength, move, bounds)
     return entries, extended_models
