@@ -76,14 +76,12 @@ class Positive(nn.Module):
 class Interval(nn.Module):
     r"""$\theta = a + (b - a)\,\sigma(\rho) \in (a, b)$.
 
-    Beyond $|\rho| = $ :attr:`raw_limit` (745) the slope $d\theta/d\rho = (b - a)\,\sigma(\rho)(1 - \sigma(\rho))$
-    underflows to exactly 0 in double precision, and the value is its end: a fit keeps $\rho$ within it
-    (:class:`~torchpaml._fit.trust_region.TrustRegionProblem`), where a direction that no longer moves the output
-    would otherwise let it run away (the cascaded tanks' spill rate at its end reached $\rho = 8.6 \times 10^{284}$,
-    then NaN). A tighter limit, where the slope is merely below $10^{-16}$ (37), rejected the steps of fits that drift
-    there on their way: the tanks' quadratic-sensor probe stalled at 1 s and lost its 13.5 % validation gain."""
+    Beyond $|\rho| = $ :attr:`raw_limit` the value is its end to double precision and $d\theta/d\rho$ below
+    $10^{-16}(b - a)$: a fit keeps $\rho$ within it (:class:`~torchpaml._fit.trust_region.TrustRegionProblem`), where a
+    direction that no longer moves the output would otherwise let it run away (the cascaded tanks' spill rate at its
+    end reached $\rho = 8.6 \times 10^{284}$, then NaN)."""
 
-    raw_limit = 745.0
+    raw_limit = 37.0
 
     def __init__(self, lower: float, upper: float):
         super().__init__()
