@@ -170,9 +170,11 @@ def copied_with_own_parametrizations(module: nn.Module, memo: dict) -> nn.Module
     return replica
 
 
-def raw_limit(owner: nn.Module, leaf: str) -> float:
-    """The largest magnitude of the raw value of ``owner``'s own parameter ``leaf`` that its constraint resolves:
-    :attr:`Interval.raw_limit`, inf for a constraint without one (a user's own included)."""
+def raw_limit(module: nn.Module, name: str) -> float:
+    """The largest magnitude of the raw value of ``module``'s parameter ``name`` (dotted) that its constraint
+    resolves: :attr:`Interval.raw_limit`, inf for a constraint without one (a user's own included)."""
+    path, _, leaf = name.rpartition(".")
+    owner = module.get_submodule(path) if path else module
     return float(getattr(getattr(owner.parametrizations, leaf)[0], "raw_limit", math.inf))
 
 

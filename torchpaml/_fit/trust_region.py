@@ -42,7 +42,7 @@ class TrustRegionProblem:
         self.with_states = initial_state.unknowns(physics, records) > 0  # the Jacobian's initial-state columns
         self.solver, self.warm, self.budget = solver, warm, budget
         self.raw = list(raw_parameters(physics, names).values())
-        self.raw_limits = np.array([raw_limit(*physics._owner(name)) for name in names])
+        self.raw_limits = np.array([raw_limit(physics, name) for name in names])
         self.targets = [r.y[None] for r in records]
         self.scale = sample_scales(self.targets)  # each sample's channel scale: the residual is the mismatch's
         self.simulations, self.cost = 0, math.inf  # the lowest cost so far
