@@ -32,7 +32,6 @@ __all__ = [
     "copied_with_own_parametrizations",
     "describe_parameters",
     "format_table",
-    "raw_limit",
     "register_parameters",
     "unphysical_values",
     "with_uncertainty",
@@ -74,14 +73,7 @@ class Positive(nn.Module):
 
 
 class Interval(nn.Module):
-    r"""$\theta = a + (b - a)\,\sigma(\rho) \in (a, b)$.
-
-    Beyond $|\rho| = $ :attr:`raw_limit` the value is its end to double precision and $d\theta/d\rho$ below
-    $10^{-16}(b - a)$: a fit keeps $\rho$ within it (:class:`~torchpaml._fit.trust_region.TrustRegionProblem`), where a
-    direction that no longer moves the output would otherwise let it run away (the cascaded tanks' spill rate at its
-    end reached $\rho = 8.6 \times 10^{284}$, then NaN)."""
-
-    raw_limit = 37.0
+    r"""$\theta = a + (b - a)\,\sigma(\rho) \in (a, b)$."""
 
     def __init__(self, lower: float, upper: float):
         super().__init__()
@@ -168,14 +160,6 @@ def copied_with_own_parametrizations(module: nn.Module, memo: dict) -> nn.Module
         for name in replica.parametrizations:
             parametrize._inject_property(replica, name)
     return replica
-
-
-def raw_limit(module: nn.Module, name: str) -> float:
-    """The largest magnitude of the raw value of ``module``'s parameter ``name`` (dotted) that its constraint
-    resolves: :attr:`Interval.raw_limit`, inf for a constraint without one (a user's own included)."""
-    path, _, leaf = name.rpartition(".")
-    owner = module.get_submodule(path) if path else module
-    return float(getattr(getattr(owner.parametrizations, leaf)[0], "raw_limit", math.inf))
 
 
 def declared(module: nn.Module) -> dict:

@@ -280,25 +280,3 @@ def test_a_fit_that_stalls_on_a_short_step_is_restarted_from_where_it_stopped(mo
     limits.clear()
     assert physics_fit._restarted(problem, np.zeros(2), (-np.inf, np.inf), 60, 1e-6).cost == 10.0
     assert limits == [60]
-
-
-def test_a_raw_value_beyond_its_intervals_limit_is_a_rejected_step_and_a_start_within_it(grid):
-    """Past ``Interval.raw_limit`` a parameter is its interval's end to double precision and the output no longer
-    moves along its raw value: there the trust region let one run to 8.6e284, then NaN (the cascaded tanks' spill
-    rate at its end). A step beyond the limit is rejected as a blow-up is (an infinite residual), and a start beyond
-    it starts at it, the same value."""
-    from torchpaml import Auto, Interval, Rest
-    from torchpaml._fit.trust_region import TrustRegionProblem
-    from torchpaml._simulate.warm import WarmStart
-
-    u = sine(grid, 1.0, 1.0)
-    model = Oscillator(zeta=1.0).bound("zeta", 0.5, 5.0)
-    records = Record.records(grid, u, model(grid, u).detach())
-    problem = TrustRegionProblem(model, records, ["zeta"], Rest(), Auto(), [WarmStart()], None)
-    limit = Interval.raw_limit
-    assert np.isfinite(problem.residual(np.array([-limit + 1.0]))).all()
-    assert np.isinf(problem.residual(np.array([-limit - 1.0]))).all()
-    with torch.no_grad():
-        model.parametrizations.zeta.original.fill_(-50.0)
-    start = problem.start(None, np.array([-np.inf]), np.array([np.inf]))
-    assert start[0] == -limit and float(model.zeta) == 0.5

@@ -21,7 +21,6 @@ from torchpaml._data import Record
 from torchpaml._data.simulation import record_jacobian
 from torchpaml._errors import SimulationError
 from torchpaml._metrics import sample_scales
-from torchpaml._parameters import raw_limit
 from torchpaml._fit.initial_state import InitialState
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._simulate.sensitivity import raw_parameters
@@ -42,7 +41,6 @@ class TrustRegionProblem:
         self.with_states = initial_state.unknowns(physics, records) > 0  # the Jacobian's initial-state columns
         self.solver, self.warm, self.budget = solver, warm, budget
         self.raw = list(raw_parameters(physics, names).values())
-        self.raw_limits = np.array([raw_limit(physics, name) for name in names])
         self.targets = [r.y[None] for r in records]
         self.scale = sample_scales(self.targets)  # each sample's channel scale: the residual is the mismatch's
         self.simulations, self.cost = 0, math.inf  # the lowest cost so far
@@ -63,7 +61,6 @@ class TrustRegionProblem:
         or rest), inside the bounds."""
         guesses = self.initial_state.guesses(self.physics, self.records, start_states)
         values = torch.stack([v.detach() for v in self.raw]).numpy() if self.raw else np.zeros(0)
-        values = np.clip(values, -self.raw_limits, self.raw_limits)  # the same values (Interval.raw_limit)
         return np.clip(np.concatenate([values, *guesses]), lower, upper)
 
     def starts(self, x: np.ndarray) -> list[torch.Tensor | None]:
@@ -88,10 +85,7 @@ class TrustRegionProblem:
         return self._memo[key]
 
     def residual(self, x: np.ndarray) -> np.ndarray:
-        """The residual at ``x``; inf where the simulation blows up, or where a raw value is beyond its constraint's
-        ``raw_limit`` (:class:`~torchpaml.Interval`'s: saturated), so that the trust region rejects the step."""
-        if bool(np.any(np.abs(x[:len(self.names)]) > self.raw_limits)):
-            return np.full(self.samples, np.inf)
+        """The residual at ``x``; inf where the simulation blows up (the trust region then rejects the step)."""
         try:
             return self.evaluate(x)[0]
         except SimulationError:
@@ -118,4 +112,3 @@ class TrustRegionProblem:
             block[:, i * (J.shape[1] - p):(i + 1) * (J.shape[1] - p)] = J[:, p:]  # none at rest
             columns.append(torch.cat([J[:, :p], block], dim=1))
         return (residual / self.scale).numpy(), (-torch.cat(columns) / self.scale[:, None]).numpy()
-
