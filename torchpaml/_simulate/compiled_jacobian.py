@@ -375,7 +375,7 @@ class _Sensitivities:
                  states: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None] | None:
         """Outputs (batch, time, n_output), their Jacobian (batch, time, n_output, columns) and, with ``states``,
         the states (batch, time, n_state) by ``method`` (``"rk4"``, ``"trbdf2"``); ``None`` where TR-BDF2's Newton
-        does not converge (the engine then says where), a side of a difference included."""
+        does not converge (the engine then says where)."""
         batch, samples, _ = u.shape
         arrays = [np.ascontiguousarray(a.detach().to(torch.float64).numpy()) for a in (t, u, x0)]
         column = np.array(columns, dtype=np.intc)
@@ -440,13 +440,12 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
         return None
     simulate = functools.partial(run, solver.compiles, outputs=physics.output_dim, substeps=solver.substeps, hold=hold)
     if run.kinked and not kinks:
-        done = _differenced(simulate, form.parameters(physics), columns, t, u, x0)
+        done = _differenced(simulate, form.parameters(physics), columns, t, u, x0)  # its output checked there
     else:
         done = simulate(form.parameters(physics), columns, t, u, x0)
-    if done is None:
-        return None
-    checked_output(done[0], t)  # raises where the output blows up, naming the time, as the engine does
-    if not bool(torch.isfinite(done[1]).all()):
+        if done is not None:
+            checked_output(done[0], t)  # raises where the output blows up, naming the time, as the engine does
+    if done is None or not bool(torch.isfinite(done[1]).all()):
         return None
     return done[0].to(x0.dtype), done[1].to(x0.dtype)
 

@@ -10,7 +10,7 @@ import torch
 
 from torchpaml._errors import ConfigurationError, DataError
 from torchpaml._grid import check_hold
-from torchpaml._simulate.blowup import checked_output
+from torchpaml._simulate.blowup import BLOWUP, checked_output
 from torchpaml._simulate.dynamics import Dynamics, complete_state
 from torchpaml._simulate.sensitivity import raw_parameters
 from torchpaml._simulate.solvers import Auto, Solver
@@ -29,7 +29,7 @@ def simulate(
     warm: WarmStart | None = None,
     hold: str = "foh",
     knots: torch.Tensor | None = None,
-    blowup: float = 1e8,
+    blowup: float = BLOWUP,
 ) -> torch.Tensor:
     r"""Simulate $y = \mathcal H^\theta[u]$ for the input through the samples, held as ``hold`` says.
 

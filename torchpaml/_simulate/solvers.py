@@ -39,7 +39,7 @@ import torch
 
 from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._grid import uniform_step
-from torchpaml._simulate.blowup import checked_output
+from torchpaml._simulate.blowup import BLOWUP, checked_output
 from torchpaml._simulate.compiled_jacobian import compiled_jacobian
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.fixed_step import simulate_fixed_step
@@ -76,7 +76,7 @@ class Solver(ABC):
     @abstractmethod
     def integrate(self, physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.Tensor, *,
                   warm: WarmStart | None = None, hold: str = "foh", knots: torch.Tensor | None = None,
-                  blowup: float = 1e8) -> torch.Tensor:
+                  blowup: float = BLOWUP) -> torch.Tensor:
         """The output (batch, time, n_output) of ``physics`` from ``x0`` (batch, n_state) driven by ``u`` (batch,
         time, n_input) on the grid ``t`` (time,), to the solver's tolerance, checked against ``blowup`` (arguments
         of :func:`~torchpaml.simulate`, which checks them first)."""
@@ -150,7 +150,7 @@ class Exact(Solver):
                                      "RK4()")
         return matrices
 
-    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=1e8):
+    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=BLOWUP):
         return checked_output(simulate_lti(*self._matrices(physics), uniform_step(t), u, x0, hold), t, blowup)
 
     def states(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh"):
@@ -223,7 +223,7 @@ class FixedStep(Solver):
     def stepping(self) -> FixedStep:
         return self.at(self.resolution)
 
-    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=1e8):
+    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=BLOWUP):
         return simulate_fixed_step(physics, t, u, x0, self, warm, hold, blowup)
 
     def states(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh"):
@@ -305,7 +305,7 @@ class Dopri5(Solver):
     def __post_init__(self):
         _check_rtol(self.rtol)
 
-    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=1e8):
+    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=BLOWUP):
         return checked_output(physics.output(self._states(physics, t, u, x0, hold, knots), u), t, blowup)
 
     def states(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh"):
@@ -350,7 +350,7 @@ class Auto(Solver):
     def simulating(self, physics: Dynamics, t: torch.Tensor) -> Solver:
         return Exact() if exact_step(physics, t) is not None else self.stepping()
 
-    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=1e8):
+    def integrate(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh", knots=None, blowup=BLOWUP):
         if exact_step(physics, t) is not None:
             return Exact().integrate(physics, t, u, x0, hold=hold, blowup=blowup)
         method = self.stepping()
