@@ -178,3 +178,39 @@ def test_a_difference_whose_side_blows_up_takes_the_other_side():
         jacobians._differenced(simulate, np.array([3.0]), [0], t, u, x0)
     with pytest.raises(SimulationError, match="simulated output blew up"):
         jacobians._differenced(simulate, np.array([2.0]), [0], t, u, x0)  # the output itself, as the engine says
+
+
+def test_a_side_whose_newton_fails_takes_the_other_side():
+    """A side's simulation that fails (its TR-BDF2 Newton, a :class:`~torchpaml.SimulationError`) is a side that
+    blew up: the column is the other side's one-sided difference."""
+    import numpy as np
+
+    from torchpaml import SimulationError
+
+    t, u, x0 = torch.arange(5.0), torch.zeros(1, 5, 1), torch.zeros(1, 1)
+
+    def simulate(parameters, columns, t, u, x0):  # y = 2p below 1; Newton fails beyond
+        p = float(parameters[0])
+        if p > 1.0:
+            raise SimulationError("TR-BDF2's Newton did not converge in the step from t = 2 s")
+        return torch.full((1, len(t), 1), 2 * p, dtype=torch.float64), None
+
+    y, J = jacobians._differenced(simulate, np.array([1.0]), [0], t, u, x0)
+    assert float(J.max()) == pytest.approx(2.0, rel=1e-6) and float(J.min()) == float(J.max())
+
+
+def test_a_stage_whose_newton_fails_is_a_refused_point_as_in_the_engine():
+    """A friction sign sharper than TR-BDF2's step can resolve (width 1e-5 at 0.5 s per step): no stage solution
+    exists where the friction's jump exceeds the step's reach, so the Newton cycles. The compiled Jacobian raises
+    (a fit rejects the point), as the engine does, and never hands the point to the engine's slower Newton."""
+    from torchpaml import SimulationError
+
+    physics = Oscillator(zeta=0.1, omega0=1.0, gain=1.0, learn=("zeta",)) + CoulombFriction(5.0, eps=1e-5)
+    t = torch.arange(50, dtype=torch.float64) * 0.5
+    u, x0 = 8 * torch.sin(t)[None, :, None], physics.initial_state(1)
+    raw = raw_parameters(physics, physics.learnable_names())
+    with pytest.raises(SimulationError, match="Newton did not converge in the step from t = "):
+        jacobians.compiled_jacobian(physics, raw, t, u, x0, TRBDF2(substeps=1), "foh", False)
+    with pytest.raises(SimulationError, match="Newton did not converge"):
+        shooting_jacobian(physics, raw, t, u, x0, TRBDF2(substeps=1), None, False, "foh")
+    assert jacobians.implicit_states(physics, t, u, x0, TRBDF2(substeps=1), "foh") is None  # simulate: the engine's

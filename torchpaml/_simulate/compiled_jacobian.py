@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import logging
 from collections.abc import Callable
 
 import numpy as np
@@ -47,6 +48,8 @@ from torchpaml._simulate.steps import BDF_NEW, BDF_OLD, D, GAMMA, HALVINGS, MAX_
 from torchpaml._symbolic.compiler import UnbuildableError, cached_library, loaded
 
 __all__ = ["compiled_jacobian", "compiled_states", "implicit_states"]
+
+log = logging.getLogger(__name__)
 
 _LOOP = r"""
 static void stage(double t_, const double *z, const double *uz, const double *p_, int columns, const int *column,
@@ -374,8 +377,8 @@ class _Sensitivities:
                  x0: torch.Tensor, outputs: int, substeps: int, hold: str,
                  states: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None] | None:
         """Outputs (batch, time, n_output), their Jacobian (batch, time, n_output, columns) and, with ``states``,
-        the states (batch, time, n_state) by ``method`` (``"rk4"``, ``"trbdf2"``); ``None`` where TR-BDF2's Newton
-        does not converge (the engine then says where)."""
+        the states (batch, time, n_state) by ``method`` (``"rk4"``, ``"trbdf2"``). Raises
+        :class:`~torchpaml.SimulationError` where a TR-BDF2 stage's Newton does not converge, naming the time."""
         batch, samples, _ = u.shape
         arrays = [np.ascontiguousarray(a.detach().to(torch.float64).numpy()) for a in (t, u, x0)]
         column = np.array(columns, dtype=np.intc)
@@ -388,7 +391,9 @@ class _Sensitivities:
         if code < 0:
             raise MemoryError("the compiled Jacobian could not allocate its sensitivities")
         if code > 0:
-            return None
+            at = float(t[(code - 1) % samples])
+            raise SimulationError(f"TR-BDF2's Newton did not converge in the step from t = {at:.4g} s: the physics is "
+                                  f"not smooth enough there, or blows up")
         return torch.from_numpy(y), torch.from_numpy(J), None if x is None else torch.from_numpy(x)
 
 
@@ -427,10 +432,12 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
     its substeps in C (module docstring): for a physics with a kink, central differences of compiled simulations
     unless ``kinks`` asks for the exact one-sided slopes (:class:`_Sensitivities`); ``None`` where it is left to the
     shooting engine: another method, a physics that does not compile
-    (:func:`~torchpaml._simulate.compiled.compiled_form`), a parameter that is not one scalar, a TR-BDF2 stage whose
-    Newton fails, or a Jacobian that is not finite. Raises :class:`~torchpaml.SimulationError` where the output
-    blows up (:func:`~torchpaml._simulate.blowup.checked_output`, as the engine does, without its slower way there)
-    or where both sides of a difference do (:func:`_difference`)."""
+    (:func:`~torchpaml._simulate.compiled.compiled_form`), a parameter that is not one scalar, or a Jacobian that is
+    not finite (one progress line says so). Raises :class:`~torchpaml.SimulationError` where the output blows up
+    (:func:`~torchpaml._simulate.blowup.checked_output`, as the engine does, without its slower way there), where a
+    TR-BDF2 stage's Newton fails (a fit rejects the point, as it does where the engine's fails: one arithmetic path
+    per fit, never the engine's slower Newton on the points where C's gave up), or where both sides of a difference
+    fail (:func:`_difference`)."""
     compiled = _sensitivities(physics, solver) if len(t) > 1 else None
     if compiled is None:
         return None
@@ -443,28 +450,32 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
         done = _differenced(simulate, form.parameters(physics), columns, t, u, x0)  # its output checked there
     else:
         done = simulate(form.parameters(physics), columns, t, u, x0)
-        if done is not None:
-            checked_output(done[0], t)  # raises where the output blows up, naming the time, as the engine does
-    if done is None or not bool(torch.isfinite(done[1]).all()):
+        checked_output(done[0], t)  # raises where the output blows up, naming the time, as the engine does
+    if not bool(torch.isfinite(done[1]).all()):
+        log.info("%s: the compiled Jacobian is not finite at these parameters; the torch engine's differences give "
+                 "this one", physics.display_name)
         return None
     return done[0].to(x0.dtype), done[1].to(x0.dtype)
 
 
 def _differenced(simulate: Callable, parameters: np.ndarray, columns: list[int], t: torch.Tensor, u: torch.Tensor,
-                 x0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | None:
+                 x0: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     r"""The outputs and their Jacobian by central differences of whole compiled simulations (a kinked physics,
     :class:`_Sensitivities`): each column $(\hat y(\theta + s e_j) - \hat y(\theta - s e_j))/2s$ with the steps
     of the engine's differences (:func:`~torchpaml._simulate.differences.difference_step` of $\rho_j$, of
     $\max|x_0|$ for an initial state's), 2(p + n) + 1 runs in C.
 
-    Where one side blows up (:func:`_difference`), the column is the other side's one-sided difference."""
-    def output(p: np.ndarray, x: torch.Tensor) -> torch.Tensor | None:
-        done = simulate(p, [], t, u, x)
-        return None if done is None else done[0]
+    Where one side fails or blows up (:func:`_difference`), the column is the other side's one-sided difference."""
+    def output(p: np.ndarray, x: torch.Tensor) -> torch.Tensor:
+        return simulate(p, [], t, u, x)[0]
+
+    def side(p: np.ndarray, x: torch.Tensor) -> torch.Tensor | None:
+        try:
+            return output(p, x)
+        except SimulationError:  # a side's TR-BDF2 Newton failed: the other side's difference
+            return None
 
     y = output(parameters, x0)
-    if y is None:
-        return None
     checked_output(y, t)  # raises where the output itself blows up, naming the time
     state_step = difference_step(float(x0.detach().abs().max()))
     differences = []
@@ -474,32 +485,30 @@ def _differenced(simulate: Callable, parameters: np.ndarray, columns: list[int],
             up, down = parameters.copy(), parameters.copy()
             up[column] += step
             down[column] -= step
-            sides = output(up, x0), output(down, x0)
+            sides = side(up, x0), side(down, x0)
         else:
             step = state_step
             direction = torch.zeros_like(x0)
             direction[..., -1 - column] = step
-            sides = output(parameters, x0 + direction), output(parameters, x0 - direction)
-        if sides[0] is None or sides[1] is None:
-            return None
+            sides = side(parameters, x0 + direction), side(parameters, x0 - direction)
         differences.append(_difference(y, sides, step))
     J = torch.stack(differences, dim=-1) if differences else y.new_zeros(*y.shape, 0)
     return y, J
 
 
-def _difference(y: torch.Tensor, sides: tuple[torch.Tensor, torch.Tensor], step: float) -> torch.Tensor:
-    r"""One column: the central difference $(\hat y_+ - \hat y_-)/2s$ of the two sides; where one side blows up
-    (beyond the engine's bound, :data:`~torchpaml._simulate.blowup.BLOWUP`) while the output does not, the
-    parameters sit at the edge of the step's stability and the column is the other side's one-sided difference
-    (the slope on the side the step resolves). On the cascaded tanks such a side reached ~1e250, and the central
-    column of 6e256 it gave overflowed the trust region's scaling into NaN unknowns. Raises
-    :class:`~torchpaml.SimulationError` where both sides blow up."""
-    up, down = (bool(blown_up(side).any()) for side in sides)
+def _difference(y: torch.Tensor, sides: tuple[torch.Tensor | None, torch.Tensor | None], step: float) -> torch.Tensor:
+    r"""One column: the central difference $(\hat y_+ - \hat y_-)/2s$ of the two sides; where one side fails (its
+    TR-BDF2 Newton, ``None``) or blows up (beyond the engine's bound, :data:`~torchpaml._simulate.blowup.BLOWUP`)
+    while the output does not, the parameters sit at the edge of the step's stability and the column is the other
+    side's one-sided difference (the slope on the side the step resolves). On the cascaded tanks such a side reached
+    ~1e250, and the central column of 6e256 it gave overflowed the trust region's scaling into NaN unknowns. Raises
+    :class:`~torchpaml.SimulationError` where both sides fail."""
+    up, down = (side is None or bool(blown_up(side).any()) for side in sides)
     if not (up or down):
         return (sides[0] - sides[1]) / (2 * step)
     if up and down:
-        raise SimulationError("both sides of the Jacobian's central difference blew up where the output did not: "
-                              "the parameters sit at the edge of the step's stability (raise substeps, or use "
+        raise SimulationError("both sides of the Jacobian's central difference failed or blew up where the output did "
+                              "not: the parameters sit at the edge of the step's stability (raise substeps, or use "
                               "solver=TRBDF2() for stiff physics)")
     return (y - sides[1]) / step if up else (sides[0] - y) / step
 
@@ -527,5 +536,10 @@ def implicit_states(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: tor
     if compiled is None:
         return None
     form, run = compiled
-    done = run("trbdf2", form.parameters(physics), [], t, u, x0, physics.output_dim, solver.substeps, hold, states=True)
-    return None if done is None else done[2].to(x0.dtype)
+    try:
+        done = run("trbdf2", form.parameters(physics), [], t, u, x0, physics.output_dim, solver.substeps, hold,
+                   states=True)
+    except SimulationError as error:
+        log.info("%s: %s in C; the torch engine simulates this one", physics.display_name, error)
+        return None
+    return done[2].to(x0.dtype)
