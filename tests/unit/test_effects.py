@@ -7,6 +7,7 @@ from torchpaml import RK4, Auto
 from torchpaml import (
     AbstractEffect,
     ComposedModel,
+    CoulombFriction,
     CubicStiffness,
     DeadZone,
     DynamicFriction,
@@ -191,3 +192,22 @@ def test_the_memory_effects_are_bounded_at_what_the_sampling_resolves_unless_giv
     assert sorted(bounds) == ["delta", "gamma"]
     assert all(value == pytest.approx((-limit, limit)) for value in bounds.values())
     assert all(abs(start["gamma"]) < limit and abs(start["delta"]) < limit for start in Hysteresis().starts([record]))
+
+
+def test_a_coulomb_frictions_width_is_bounded_at_the_speeds_the_samples_resolve():
+    """The smoothing velocity's floor is SIGN_RESOLUTION of the output's largest rate (0.19 over 0.1 s here); a ranking
+    fit holds every effect's bounds on its learnable parameters, widened to take a start beyond them."""
+    from torchpaml._diagnostics.ranking.refits import effect_bounds
+    from torchpaml._physics.effects import SIGN_RESOLUTION
+
+    t = torch.linspace(0.0, 1.0, 11)
+    record = Record(t, torch.zeros(11, 1), (t**2)[:, None], "r")
+    floor = SIGN_RESOLUTION * 0.19 / 0.1
+    assert CoulombFriction().bounds([record]) == {"eps": (pytest.approx(floor), float("inf"))}
+    model = Oscillator() + CoulombFriction(eps=0.01)
+    assert effect_bounds(model, [record]) == {}  # eps fixed: nothing to bound
+    model.set_learnable("coulomb_friction.eps")
+    assert effect_bounds(model, [record]) == {"coulomb_friction.eps": (pytest.approx(floor), float("inf"))}
+    below = (Oscillator() + CoulombFriction(eps=1e-6)).set_learnable("coulomb_friction.eps")
+    assert effect_bounds(below, [record]) == {"coulomb_friction.eps": (pytest.approx(1e-6), float("inf"))}
+    assert effect_bounds(Oscillator(), [record]) == {}

@@ -52,7 +52,8 @@ import torch
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._parameters import PhysicalParameter, Positive, Real, register_parameters
 from torchpaml._physics.effect import AbstractEffect, EffectState
-from torchpaml._physics.memory_effects import DynamicFriction, Hysteresis, InputLag, LatentState
+from torchpaml._physics.memory_effects import (DynamicFriction, Hysteresis, InputLag, LatentState, _largest_step,
+                                              sample_interval)
 from torchpaml._physics.signal_effects import (ExtraMode, Feedthrough, MagnitudeSensor, QuadraticInput, QuadraticSensor,
                                                SensorLag)
 
@@ -112,6 +113,11 @@ class PendulumRestoring(AbstractEffect):
         return self.lam * physics.omega0**2 * (x - torch.sin(x))
 
 
+#: The smallest smoothing velocity of a Coulomb friction a ranking's refit may reach, as a share of the records'
+#: largest rate of the output (:meth:`CoulombFriction.bounds`).
+SIGN_RESOLUTION = 1e-3
+
+
 class CoulombFriction(AbstractEffect):
     r"""Dry friction, $F = -F_c\tanh(v/\varepsilon)$; ``eps`` (fixed) is the velocity of the smoothing."""
 
@@ -124,6 +130,17 @@ class CoulombFriction(AbstractEffect):
             PhysicalParameter("Fc", Fc, "m/s^2", Real(), "Coulomb friction level", physical=(0.0, math.inf)),
             PhysicalParameter("eps", eps, "m/s", Positive(), "smoothing velocity of the sign"),
         ], learn)
+
+    def bounds(self, records):
+        r"""``eps`` at least :data:`SIGN_RESOLUTION` of the records' largest rate of the output, $\max|\Delta y|/h$
+        (the velocity's scale where the output is the position): below it, $\tanh(v/\varepsilon)$ differs from
+        $\mathrm{sign}(v)$ only at speeds the samples do not resolve, so the output cannot tell the width and a fit runs
+        it away without end, while the friction's rate $F_c/\varepsilon$ makes every step stiffer (measured on EMPS's
+        third rung: unbounded, a refit drove eps from 2e-3 to 1.1e-26 m/s, and the refitted model's TR-BDF2 Newton
+        then failed). EMPS's bound is 1.3e-4 m/s, the demo's 3e-3 against its 0.01."""
+        step = sample_interval(records)
+        rate = _largest_step(records) / step if step else 0.0
+        return {"eps": (SIGN_RESOLUTION * rate, math.inf)} if rate > 0 else {}
 
     def force(self, physics: AbstractPhysics, x, v, u):
         return -self.Fc * torch.tanh(v / self.eps)

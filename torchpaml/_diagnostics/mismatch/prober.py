@@ -39,7 +39,7 @@ from torchpaml._diagnostics.mismatch.places import FORCE, INITIAL_STATE, OUTPUT_
 from torchpaml._diagnostics.mismatch.result import DISCOVERED, MismatchProbes, ProbeResult, ranked
 from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE
 from torchpaml._diagnostics.ranking.ranker import Ranker
-from torchpaml._diagnostics.ranking.refits import Refits
+from torchpaml._diagnostics.ranking.refits import Refits, effect_bounds
 from torchpaml._diagnostics.ranking.scoring import as_records, score_model, scored_mismatch
 from torchpaml._diagnostics.ranking.steps import applicable, placed, scored
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
@@ -199,8 +199,7 @@ def _from_far_strength(effects: list, first: ModelScore, ranking: Ranking, train
         entry = EffectEvidence(effect.name, effect.equation, 0.0, 1, effect.far_strength,
                                refit_reason="refitted from its far strength on the physics alone")
         extended = copy.deepcopy(first.model) + copy.deepcopy(effect)
-        bounds = {f"{effect.name}.{name}": limits for name, limits in effect.bounds(train).items()}
-        refits.run(entry, extended, f"{effect.name}.{effect.strength}", None, bounds)
+        refits.run(entry, extended, f"{effect.name}.{effect.strength}", None, effect_bounds(extended, train))
         if entry.refit is None:
             log.info("%s from %s = %g: no refit (%s)", effect.name, effect.strength, effect.far_strength,
                      entry.failure or entry.refit_reason)

@@ -140,8 +140,7 @@ class Ranker:
         refitted = by_criterion(entries)
         if refitted:  # the best may ask for another shape (freeing only improves it, so it stays first)
             best = refitted[0]
-            free_shape(best, train, validation, rule, self.max_nfev, initial_state, refits.budget(best.effect),
-                       extended_models[best.effect][3])
+            free_shape(best, train, validation, rule, self.max_nfev, initial_state, refits.budget(best.effect))
             best.improvement = baseline.criterion - best.refit.criterion
             best.unphysical = unphysical_values(best.refit.rows())
         rest = [e for e in by_score if e.refit is None]

@@ -29,7 +29,7 @@ from torchpaml._simulate.solvers import Auto, Solver
 from torchpaml._simulate.warm import WarmStart
 
 __all__ = ["GATE_MARGIN", "REFIT_CRITERION_STEP", "RESCUE_FRACTIONS", "Refits", "SHAPE_FTOL", "cannot_pass",
-           "free_shape", "refit_effect"]
+           "effect_bounds", "free_shape", "refit_effect"]
 
 log = logging.getLogger(__name__)
 
@@ -156,17 +156,33 @@ def _training_mismatch(physics: AbstractPhysics, train: list[Record], states: li
 SHAPE_FTOL = 1e-10
 
 
+def effect_bounds(model: AbstractPhysics, records: list[Record]) -> dict[str, tuple[float, float]]:
+    """The bounds of every effect of ``model`` on ``records`` (:meth:`~torchpaml.AbstractEffect.bounds`)
+    on those of its parameters that are learnable, each widened to take the parameter's current value (a start
+    beyond a bound, a user's, is kept as it is): an effect's bounds hold in every refit where its parameters move,
+    the rungs after it was added included (a Coulomb friction's width freed on one rung runs away on the next
+    without its bound)."""
+    learnable, values = set(model.learnable_names()), model.physical_parameters()
+    bounds = {}
+    for name in model.effect_names():
+        for parameter, (lower, upper) in model.effects[name].bounds(records).items():
+            key = f"{name}.{parameter}"
+            if key in learnable:
+                bounds[key] = (min(lower, values[key]), max(upper, values[key]))
+    return bounds
+
+
 def free_shape(entry: EffectEvidence, train: list[Record], validation: list[Record], rule: SelectionRule,
-               max_nfev: int, initial_state: InitialState, budget: Budget,
-               bounds: dict[str, tuple[float, float]]) -> None:
+               max_nfev: int, initial_state: InitialState, budget: Budget) -> None:
     """``entry``'s refit replaced by its model refitted with the effect's shape parameters freed (to
-    :data:`SHAPE_FTOL`), if that beats it by the rule's threshold; a shape refit over ``budget`` leaves the refit and
-    says so in ``entry.refit_reason``."""
+    :data:`SHAPE_FTOL`, within every effect's bounds, :func:`effect_bounds`), if that beats it by the rule's
+    threshold; a shape refit over ``budget`` leaves the refit and says so in ``entry.refit_reason``."""
     score = entry.refit
     shape = score.model.effects[entry.effect].shape
     if not shape:
         return
     freed = copy.deepcopy(score.model).set_learnable(*(f"{entry.effect}.{name}" for name in shape))
+    bounds = effect_bounds(freed, train)
     states = initial_state.carried(score.train_states)
     try:
         estimate = fit_physics(freed, train, max_nfev=max_nfev, initial_state=initial_state, start_states=states,

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 
 from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Record
+from torchpaml._diagnostics.ranking.refits import effect_bounds
 from torchpaml._diagnostics.ranking.scoring import score_model
 from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._diagnostics.results import ModelScore
@@ -83,7 +84,7 @@ def remove_stand_in(current: ModelScore, earlier: Sequence[str], rung: int, trai
         log.info("%s (a stand-in, where the rule does not keep it)", label)
         try:
             fit = fit_physics(reduced, train, max_nfev=max_nfev, initial_state=initial_state, start_states=starts,
-                              solver=Auto(start=current.solver),
+                              solver=Auto(start=current.solver), bounds=effect_bounds(reduced, train),
                               budget=Budget(label, deadline=math.inf if deadline is None else deadline))
             score = score_model(reduced, fit, validation, rule, initial_state)
         except (SimulationError, OverBudget) as error:

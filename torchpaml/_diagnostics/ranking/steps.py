@@ -57,7 +57,7 @@ from torchpaml._budget import Budget, OverBudget
 from torchpaml._data import Record
 from torchpaml._metrics import sample_scales
 from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE, Engines, by_promise, first_order
-from torchpaml._diagnostics.ranking.refits import Refits, cannot_pass
+from torchpaml._diagnostics.ranking.refits import Refits, cannot_pass, effect_bounds
 from torchpaml._diagnostics.results import EffectEvidence
 from torchpaml._diagnostics.ranking.selection import SelectionRule
 from torchpaml._errors import ConfigurationError, SimulationError
@@ -110,7 +110,7 @@ def rung_fit(physics: AbstractPhysics, train: list[Record], max_nfev: int, initi
                     deadline=deadline)
     try:
         fit = fit_physics(base, train, max_nfev=max_nfev, initial_state=initial_state, start_states=start_states,
-                          solver=Auto(start=solver), budget=budget)
+                          solver=Auto(start=solver), budget=budget, bounds=effect_bounds(base, train))
     except OverBudget as over:
         if refitted is None:
             raise ConfigurationError(f"{label} did not end within the diagnosis' budget ({over.seconds:.0f} s); give "
@@ -173,7 +173,5 @@ def scored(base: AbstractPhysics, candidates: list[AbstractEffect], train: list[
         extended, (score, order, start, move, acting) = best
         entries.append(EffectEvidence(candidate.name, candidate.equation, score, order, start, acting=acting,
                                       states=len(candidate.own_states), generic=candidate.generic))
-        bounds = {f"{candidate.name}.{name}": limits for name, limits in candidate.bounds(train).items()
-                  if f"{candidate.name}.{name}" in extended.learnable_names()}
-        extended_models[candidate.name] = (extended, strength, move, bounds)
+        extended_models[candidate.name] = (extended, strength, move, effect_bounds(extended, train))
     return entries, extended_models
