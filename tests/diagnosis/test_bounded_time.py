@@ -118,22 +118,24 @@ def lugre_records(samples=601):
     return records(device, samples)
 
 
-def test_a_rung_after_an_effect_with_memory_under_a_sharp_sign_ends_its_fit_within_its_budget_and_says_so(caplog):
-    """From the refit's optimum (sigma0 4.7, zc 0.079) the rung's fit drifts towards the sharp truth, each evaluation
-    costlier: at 1 201 samples 86.6 s unbounded, 71 times its refit. It stops at ten times its refit and the
-    rung keeps the refit's parameters."""
+def test_a_rung_after_an_effect_with_memory_under_a_sharp_sign_keeps_its_bound_and_ends_its_fit(caplog):
+    """From the refit's optimum the rung's fit would drift towards the sharp truth (zc 1e-3), each evaluation costlier
+    as the sign sharpens: unbounded, at 1 201 samples, 86.6 s, 71 times its refit. The effect's bound (zc at least
+    half the largest change of y over one sample, :meth:`~torchpaml.DynamicFriction.bounds`) holds in the rung's fit
+    as in the refit, so the fit ends, within its budget, on the bound."""
     train, validation = lugre_records()
     physics = build_model("oscillator").set_learnable("zeta", "omega0", "gain")
     with caplog.at_level(logging.INFO, logger="torchpaml"):
         ladder = model_ladder(physics, [DynamicFriction()], train, validation)
     assert ladder.added == ["dynamic_friction"], ranking_table(ladder.rankings[0])
-    refit = ladder.rankings[0].recommended
-    assert ladder.rankings[1].fit_over_budget is not None
-    assert ladder.final.parameters == refit.refit.parameters
+    assert ladder.rankings[1].fit_over_budget is None
+    bound = DynamicFriction().bounds(train)["zc"][0]
+    assert ladder.final.parameters["dynamic_friction.zc"] >= bound * (1 - 1e-9)
+    assert ladder.final.parameters["dynamic_friction.zc"] > 10 * 1e-3  # the truth lies beyond what the samples resolve
     lines = [r.getMessage() for r in caplog.records]
     assert "fitting Oscillator + dynamic_friction on 600 samples" in lines
     assert any(line.startswith("refitting Oscillator + dynamic_friction (at most ") for line in lines), lines
-    assert any(line.startswith("fitting Oscillator + dynamic_friction stopped over its budget") for line in lines)
+    assert not any("stopped over its budget" in line for line in lines)
 
 
 def test_a_tiny_budget_on_a_rung_fit_keeps_its_refits_parameters_and_the_verdict_and_the_files_say_so(tmp_path):
