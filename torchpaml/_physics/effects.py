@@ -137,7 +137,8 @@ class CoulombFriction(AbstractEffect):
         $\mathrm{sign}(v)$ only at speeds the samples do not resolve, so the output cannot tell the width and a fit runs
         it away without end, while the friction's rate $F_c/\varepsilon$ makes every step stiffer (measured on EMPS's
         third rung: unbounded, a refit drove eps from 2e-3 to 1.1e-26 m/s, and the refitted model's TR-BDF2 Newton
-        then failed). EMPS's bound is 1.3e-4 m/s, the demo's 3e-3 against its 0.01."""
+        then failed). EMPS's bound is 1.3e-4 m/s; on ``benchmarks/bench_diagnosis.py``'s oscillator records it is
+        3.2e-3, against the default 0.01."""
         step = sample_interval(records)
         rate = _largest_step(records) / step if step else 0.0
         return {"eps": (SIGN_RESOLUTION * rate, math.inf)} if rate > 0 else {}

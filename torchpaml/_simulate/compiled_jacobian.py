@@ -375,7 +375,7 @@ class _Sensitivities:
 
     def __call__(self, method: str, parameters: np.ndarray, columns: list[int], t: torch.Tensor, u: torch.Tensor,
                  x0: torch.Tensor, outputs: int, substeps: int, hold: str,
-                 states: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None] | None:
+                 states: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]:
         """Outputs (batch, time, n_output), their Jacobian (batch, time, n_output, columns) and, with ``states``,
         the states (batch, time, n_state) by ``method`` (``"rk4"``, ``"trbdf2"``). Raises
         :class:`~torchpaml.SimulationError` where a TR-BDF2 stage's Newton does not converge, naming the time."""
