@@ -117,6 +117,7 @@ def test_the_new_solver_fits_the_physics_by_its_own_jacobian(records):
         assert fit.parameters[name] == pytest.approx(value, rel=2e-3), name
 
 
+@pytest.mark.slow  # about 8 s: the slow lane (make test-all), to keep make test under 3 minutes
 def test_a_plain_solver_fits_by_central_differences_of_its_states(records):
     short = records[0].window(0, 101)
     model = Oscillator(zeta=0.3, omega0=1.8, gain=1.2, learn=("zeta", "omega0", "gain")) + CubicStiffness(k3=K3)

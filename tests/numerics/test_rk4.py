@@ -156,6 +156,7 @@ def test_gradcheck_in_parameter_and_input():
     assert torch.autograd.gradcheck(run, (torch.tensor(-1.5, requires_grad=True), u), fast_mode=True)
 
 
+@pytest.mark.slow  # about 11 s: the slow lane (make test-all), to keep make test under 3 minutes
 def test_non_uniform_time_is_simulated_by_the_same_engine(drive):
     t, u = drive
     keep = torch.arange(len(t)) % 3 != 2  # every third sample missing
