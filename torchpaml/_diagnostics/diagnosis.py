@@ -36,6 +36,11 @@ r"""The whole diagnosis: compare, where it fails, which effect is missing, add i
    on the physics alone (:func:`_against_stand_ins`): its form replaces the ladder's effects where the rule
    recommends it there, the last rung does not beat it by the rule, and it has fewer fitted parameters; the effects
    stood in for it (``Discovery.replaces``), and :attr:`Diagnosis.final` is the form.
+
+**One arithmetic path.** The whole diagnosis runs with torch's and the BLAS pools at one thread
+(:mod:`~torchpaml._fit.one_thread`), not only its fits: a first-order score, a start or a validation score summed
+over two threads is added in another order than over one, and a ladder's rung fit that starts from it can end in
+another optimum. The two residual fits still run side by side, each on one thread.
 """
 
 from __future__ import annotations
@@ -75,6 +80,7 @@ from torchpaml._metrics import mismatch
 from torchpaml._parameters import describe_parameters
 from torchpaml._fit.fitted_model import FittedModel
 from torchpaml._fit.initial_state import InitialState, Rest, as_initial_state
+from torchpaml._fit.one_thread import one_thread
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.checks import check_channels, check_physics, check_time_scale
 from torchpaml._data.checks import check_outputs_vary, check_scales_agree
@@ -405,35 +411,42 @@ def diagnose(
     log.info("diagnosing %s on %d training and %d validation record(s), %d samples; budget: %s (budget=, --budget)",
              physics.display_name, len(train), len(validation), sum(len(r.t) for r in train + validation),
              "none" if budget is None else f"{budget:.0f} s for the whole diagnosis")
-    ladder = model_ladder(physics, candidates, train, validation, ranker=ranker, initial_state=initial_state,
-                          start_states=start_states, deadline=deadline)
-    base = ladder.steps[0]
-    channels = channel_scores(base, ladder.final, validation)
-    alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
-    floor = noise_floor(train + validation, validation)  # one reading for both rungs
-    log.info("fitting the Chebyshev residual on top")
-    with ThreadPoolExecutor(min(2, torch.get_num_threads())) as pool:  # one where torch has one (a fleet's worker)
-        hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha, deadline, floor,
-                                                     ladder.rankings[0].initial_state),
-                                _distinct(base, ladder.final)))
-    complete = hybrids[-1].adequacy.complete
-    probes = None if prober is None else prober.probe(ladder.rankings[-1], train, validation, ranker=ranker,
-                                                      deadline=deadline, discovering=discovery is not None,
-                                                      complete=complete, first=base)
-    found = None
-    if discovery is not None:
-        if deadline is not None:
-            log.info("discovery: %.0f s of the diagnosis' budget left", max(0.0, deadline - time.perf_counter()))
-        found = discovery.discover(ladder.rankings[-1], train, validation, deadline, complete=complete)
-        if ladder.added and found.recommended and found.discovered is not None:
-            found = _form_without_stand_ins(discovery, ladder, found, train, validation, deadline)
-        elif ladder.added:
-            found = _against_stand_ins(discovery, ladder, found, train, validation, deadline)
-        if probes is not None:
+    workers = min(2, torch.get_num_threads())  # the residual fits' threads: one where torch has one (a fleet's worker)
+    with one_thread():  # one arithmetic path: every reduction of the diagnosis on one thread
+        ladder = model_ladder(physics, candidates, train, validation, ranker=ranker, initial_state=initial_state,
+                              start_states=start_states, deadline=deadline)
+        base = ladder.steps[0]
+        channels = channel_scores(base, ladder.final, validation)
+        alpha = alpha or 1.05 * max(float(r.u.abs().max()) for r in train + validation)
+        floor = noise_floor(train + validation, validation)  # one reading for both rungs
+        log.info("fitting the Chebyshev residual on top")
+        with ThreadPoolExecutor(workers) as pool:
+            hybrids = list(pool.map(lambda step: _hybrid(step, train, validation, alpha, deadline, floor,
+                                                         ladder.rankings[0].initial_state),
+                                    _distinct(base, ladder.final)))
+        complete = hybrids[-1].adequacy.complete
+        probes = None if prober is None else prober.probe(ladder.rankings[-1], train, validation, ranker=ranker,
+                                                          deadline=deadline, discovering=discovery is not None,
+                                                          complete=complete, first=base)
+        found = None if discovery is None else _discovered(discovery, ladder, train, validation, deadline, complete)
+        if probes is not None and found is not None:
             probes = probes.with_discovery(found)
-    first = channels[0]
-    return Diagnosis(ladder, first.residuals, first.by_input, first.by_output, hybrids, validation, found, channels,
-                     probes)
+        first = channels[0]
+        return Diagnosis(ladder, first.residuals, first.by_input, first.by_output, hybrids, validation, found, channels,
+                         probes)
+
+
+def _discovered(discovery: Discoverer, ladder: Ladder, train: list[Record], validation: list[Record],
+                deadline: float | None, complete: bool) -> Discovery:
+    """Discovery on the ladder's last rung, then against the effects the ladder added (module docstring, step 5)."""
+    if deadline is not None:
+        log.info("discovery: %.0f s of the diagnosis' budget left", max(0.0, deadline - time.perf_counter()))
+    found = discovery.discover(ladder.rankings[-1], train, validation, deadline, complete=complete)
+    if ladder.added and found.recommended and found.discovered is not None:
+        return _form_without_stand_ins(discovery, ladder, found, train, validation, deadline)
+    if ladder.added:
+        return _against_stand_ins(discovery, ladder, found, train, validation, deadline)
+    return found
 
 
 def _against_stand_ins(discovery: Discoverer, ladder: Ladder, found: Discovery, train: list[Record],

@@ -23,6 +23,7 @@ from torchpaml._errors import ConfigurationError
 from torchpaml._fit.neural_force import fit_neural_force
 from torchpaml._fit.sparse_regression import SparseRegression
 from torchpaml._physics.terms import TermLibrary, variables_of
+from torchpaml._fit.one_thread import one_thread
 
 __all__ = ["Discoverer", "discover_missing_force"]
 
@@ -57,6 +58,7 @@ class Discoverer:
             if not (isinstance(value, int) and value >= 1):
                 raise ConfigurationError(f"{name} must be a whole number, at least 1; got {value!r}")
 
+    @one_thread()  # one arithmetic path (torchpaml._fit.one_thread)
     def discover(self, ranking: Ranking, train: Sequence[Record], validation: Sequence[Record],
                  deadline: float | None = None, complete: bool = False) -> Discovery:
         """Discover the force or rate missing from ``ranking``'s physics (:mod:`~torchpaml._diagnostics.discovery.result`)

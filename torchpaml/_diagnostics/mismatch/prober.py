@@ -46,6 +46,7 @@ from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
 from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._fit.initial_state import START_WINDOW, Estimate
 from torchpaml._physics.effects import EFFECTS
+from torchpaml._fit.one_thread import one_thread
 
 __all__ = ["Prober"]
 
@@ -71,6 +72,7 @@ class Prober:
             raise ConfigurationError(f"the probes' places name effects outside the library: {unknown}; choose from "
                                      f"{sorted(EFFECTS)}")
 
+    @one_thread()  # one arithmetic path (torchpaml._fit.one_thread)
     def probe(self, ranking: Ranking, train: Record | Sequence[Record], validation: Record | Sequence[Record], *,
               ranker: Ranker = Ranker(), deadline: float | None = None, discovery: Discovery | None = None,
               complete: bool = False, first: ModelScore | None = None, discovering: bool = False) -> MismatchProbes:

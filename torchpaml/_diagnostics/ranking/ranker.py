@@ -25,6 +25,7 @@ from torchpaml._parameters import unphysical_values
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import AbstractEffect
 from torchpaml._simulate.solvers import Solver
+from torchpaml._fit.one_thread import one_thread
 
 __all__ = ["Ranker", "rank_missing_effects"]
 
@@ -89,6 +90,7 @@ class Ranker:
             if not (value > 0 and math.isfinite(value)):
                 raise ConfigurationError(f"{name} must be positive and finite, got {value!r}")
 
+    @one_thread()  # one arithmetic path (torchpaml._fit.one_thread)
     def rank(self, physics: AbstractPhysics, candidates: Sequence[AbstractEffect], train: Record | Sequence[Record],
              validation: Record | Sequence[Record], *, initial_state: InitialState = Rest(),
              start_states: Sequence[torch.Tensor] | None = None, deadline: float | None = None,
