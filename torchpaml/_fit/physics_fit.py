@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -49,6 +50,7 @@ from torchpaml._fit.one_thread import one_thread
 from torchpaml._fit.resolution import MAX_SUBSTEPS, resolved_solver, stable_solver
 from torchpaml._fit.trust_region import TrustRegionProblem
 from torchpaml._fit.uncertainty import Uncertainty, constraint_slopes, parameter_uncertainty, warn_if_unidentifiable
+from torchpaml._parameters import raw_limits
 from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.checks import check_channels
 from torchpaml._data.checks import check_outputs_vary
@@ -121,6 +123,17 @@ def _raw_bounds(physics: AbstractPhysics, names: list[str], bounds: dict[str, tu
     return lower, upper
 
 
+def _held_in(x: np.ndarray, limits: list[float], lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """The start ``x`` with each raw parameter beyond its limit (:func:`~torchpaml._parameters.raw_limits`) brought
+    to it, within the bounds: a saturated parameter starts where its map is at its limit to 4e-18, not at a raw
+    value that an earlier fit left anywhere beyond."""
+    x = x.copy()
+    for i, limit in enumerate(limits):
+        if abs(x[i]) > limit:
+            x[i] = float(np.clip(math.copysign(limit, x[i]), lower[i], upper[i]))
+    return x
+
+
 def fit_physics(
     physics: AbstractPhysics,
     records: Record | Sequence[Record],
@@ -168,7 +181,7 @@ def fit_physics(
     lower, upper = _raw_bounds(physics, names, bounds or {})
     states = initial_state.unknowns(physics, records)  # unbounded
     lower, upper = np.concatenate([lower, np.full(states, -np.inf)]), np.concatenate([upper, np.full(states, np.inf)])
-    x = problem.start(start_states, lower, upper)
+    x = _held_in(problem.start(start_states, lower, upper), raw_limits(physics, names), lower, upper)
     problem.evaluate(x)  # raises SimulationError, naming the blow-up, at a bad start
     step_check = _StepCheck(problem)
     result = None
@@ -263,11 +276,17 @@ def _estimate(problem: TrustRegionProblem, x: np.ndarray) -> PhysicsEstimate:
     x0_values = x[len(names):].tolist()
     estimates = torch.tensor([values[n] for n in names] + x0_values, dtype=torch.float64)
     uncertainty = parameter_uncertainty(names + state_names, estimates, residual, jacobian / slopes,
-                                        at_limit=[n for n, slope in zip(names, slopes, strict=False) if slope == 0])
+                                        at_limit=_at_limit(physics, names, x, slopes))
     warn_if_unidentifiable(uncertainty, physics.display_name)
     return PhysicsEstimate({n: values[n] for n in names}, float(torch.linalg.vector_norm(residual)), residual,
                            jacobian, problem.simulations, uncertainty, initial_states,
                            _simulating(problem.solver, physics, records), physics)
+
+
+def _at_limit(physics: AbstractPhysics, names: list[str], x: np.ndarray, slopes: torch.Tensor) -> list[str]:
+    """The parameters at the limit of their constraint: its slope is 0, or the raw value is at its limit."""
+    limits = raw_limits(physics, names)
+    return [n for i, n in enumerate(names) if slopes[i] == 0 or abs(x[i]) >= limits[i]]
 
 
 def _simulating(solver: Solver, physics: AbstractPhysics, records: list[Record]) -> Solver:
