@@ -15,7 +15,11 @@ and lengthens its segments towards sequential stepping) stops there too, not onl
 own ``seconds``), checked between evaluations and at every Newton sweep of the engine; where it binds, the fit's
 progress line says that the wall clock stopped it, and the answer may then depend on the machine's speed.
 
-The ranking gives each refit ten times its rung's own fit in evaluations (:data:`REFIT_BUDGET`): $E = 10\,n_{\text{fit}}$.
+The ranking gives each refit ten times its rung's own fit in evaluations (:data:`REFIT_BUDGET`), and never less than ten
+times a refit's own iteration limit: $E = 10\,\max(n_{\text{fit}}, n_{\max})$ (:func:`refit_evaluations`). Without the
+floor, a rung fitted from its refit's optimum in 6 or 7 evaluations (the cascaded tanks' last rung, the records
+perturbed by 1e-12 or not) gave its probes' refits 60 or 70, and a refit that needed 65 was decided on one and not on
+the other.
 A rung's fit is all the fitting that made its model: the fit of the physics on the first rung; on the next ones, the
 refit that found the added effect and the fit that takes it to the last digits. A rung's fit from its refit's optimum
 (which stopped at a criterion step of 0.1) needs a few evaluations: it may take :data:`RUNG_FIT_BUDGET` times its
@@ -39,7 +43,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 __all__ = ["Budget", "DEFAULT_BUDGET", "OverBudget", "PROGRESS_SECONDS", "REFIT_BUDGET", "RUNG_FIT_BUDGET",
-           "checkpoint"]
+           "checkpoint", "refit_evaluations"]
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +57,13 @@ REFIT_BUDGET = 10.0
 RUNG_FIT_BUDGET = 10.0
 #: Seconds a whole diagnosis may take by default (``diagnose(budget=)``, ``--budget``): ten minutes.
 DEFAULT_BUDGET = 600.0
+
+
+def refit_evaluations(share: float, rung_fit: int, max_nfev: int) -> float:
+    """The evaluations a refit may take (module docstring): ``share`` times its rung's fit (``rung_fit``
+    evaluations), and at least ``share`` times a refit's iteration limit ``max_nfev``."""
+    return share * max(rung_fit, max_nfev)
+
 
 
 _ACTIVE: contextvars.ContextVar[Budget | None] = contextvars.ContextVar("torchpaml_budget", default=None)

@@ -122,3 +122,11 @@ def test_an_evaluation_that_runs_away_inside_the_engine_stops_at_the_next_newton
     with pytest.raises(OverBudget, match="wall clock"):
         fit_physics(model, duffing[0], budget=budget)
     assert budget.count == 1  # stopped inside the second evaluation, before it ended
+
+
+def test_a_refits_evaluations_are_ten_times_its_rungs_fit_and_never_fewer_than_ten_of_its_own_limits():
+    from torchpaml._budget import refit_evaluations
+
+    assert refit_evaluations(10.0, 7, 40) == 400  # a rung fitted from its refit's optimum in a few evaluations
+    assert refit_evaluations(10.0, 6, 40) == refit_evaluations(10.0, 7, 40)  # the tanks' 6 or 7: the same limit
+    assert refit_evaluations(10.0, 55, 40) == 550

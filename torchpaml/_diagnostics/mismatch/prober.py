@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import torch
 
-from torchpaml._budget import Budget, OverBudget
+from torchpaml._budget import Budget, OverBudget, refit_evaluations
 from torchpaml._data import Record
 from torchpaml._diagnostics.discovery.result import Discovery
 from torchpaml._diagnostics.mismatch.in_time import error_in_time
@@ -104,7 +104,8 @@ class Prober:
         fresh = [effect for usable in effects.values() for effect in usable if effect.name not in refitted]
         entries, extended = scored(model, fresh, train, fit, ranker.probe) if fresh else ([], {})
         new = {e.effect: e for e in entries}
-        template = Budget(model.display_name, evaluations=ranker.refit_budget * fit.evaluations, deadline=end)
+        template = Budget(model.display_name, evaluations=refit_evaluations(ranker.refit_budget, fit.evaluations,
+                                                                     ranker.max_nfev), deadline=end)
         refits = Refits(model.display_name, train, validation, fit, score, ranking.rule, ranking.initial_state,
                         ranker.max_nfev, template)
         rows = []

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import torch
 
-from torchpaml._budget import REFIT_BUDGET, RUNG_FIT_BUDGET, Budget
+from torchpaml._budget import REFIT_BUDGET, RUNG_FIT_BUDGET, Budget, refit_evaluations
 from torchpaml._data import Record
 from torchpaml._diagnostics.ranking.beam import BEAM
 from torchpaml._diagnostics.ranking.occam import KINDS, kind, simpler_alternatives, simpler_first
@@ -61,7 +61,8 @@ class Ranker:
         shortlist: how many of the best-scored candidates are refitted.
         probe: strength $\\delta$ of the first-order secant.
         max_nfev: iteration limit of each refit.
-        refit_budget: each refit may take this many times the evaluations of its rung's fit (:mod:`torchpaml._budget`).
+        refit_budget: each refit may take this many times the evaluations of its rung's fit, and at least this many
+            times ``max_nfev`` (:func:`~torchpaml._budget.refit_evaluations`).
         fit_budget: a rung's fit from the optimum of the refit that found its effect may take this many times that
             refit's evaluations; over it, the rung keeps the refit's parameters (``Ranking.fit_over_budget``).
         beam: how many models climb the ladder side by side, each rung's runner-ups on their own paths
@@ -127,7 +128,8 @@ class Ranker:
         baseline = score_model(base, fit, validation, rule, initial_state)
         # the rung's fit in evaluations: its refit's and its own (the same count on every machine)
         made = fit.evaluations + (0 if refitted is None or over is not None else refitted.refit.estimate.evaluations)
-        limits = Budget(base.display_name, evaluations=self.refit_budget * made, deadline=end)
+        limits = Budget(base.display_name, evaluations=refit_evaluations(self.refit_budget, made, self.max_nfev),
+                        deadline=end)
         if not candidates:
             return Ranking(baseline, [], rule, skipped, initial_state, over, seconds)
         if solver is not None and fit.solver.stepping() is None:  # a rung on the exact path: effects step by solver
