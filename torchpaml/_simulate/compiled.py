@@ -52,11 +52,9 @@ __all__ = ["MAX_PARAMETERS", "MIN_STEPS", "compiled_form", "sequential_states", 
 log = logging.getLogger(__name__)
 
 #: Fewest RK4 steps (rows x samples x substeps) for which a physics is compiled: below, the shooting engine
-#: finishes before a model is traced and compiled. Lowered to 256, the diagnosis' scoring ran in C on the cascaded
-#: tanks (768 samples): 101 s instead of 147 s, but on one thread and on records perturbed by 1e-12 the tanks then
-#: ended on the greedy path (three effects) where two threads took the beam's (four): kept at 4 096 until that
-#: edge is understood.
-MIN_STEPS = 2**12
+#: finishes before a model is traced and compiled (a model's C form is cached by structure, so a diagnosis compiles
+#: each once). At 256 the cascaded tanks' records (768 and 1 024 samples) run in C.
+MIN_STEPS = 2**8
 #: Most parameter and buffer elements of a physics that is compiled.
 MAX_PARAMETERS = 256
 

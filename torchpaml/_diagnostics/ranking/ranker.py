@@ -72,7 +72,7 @@ class Ranker:
     rule: SelectionRule = field(default_factory=SelectionRule)
     shortlist: int = 2
     probe: float = 1e-4
-    max_nfev: int = 40
+    max_nfev: int = 100
     refit_budget: float = REFIT_BUDGET
     fit_budget: float = RUNG_FIT_BUDGET
     beam: int = BEAM
@@ -192,7 +192,7 @@ def rank_missing_effects(
     rule: SelectionRule | None = None,
     shortlist: int = 2,
     probe: float = 1e-4,
-    max_nfev: int = 40,
+    max_nfev: int = 100,
     refit_budget: float = REFIT_BUDGET,
     fit_budget: float = RUNG_FIT_BUDGET,
     **options,
