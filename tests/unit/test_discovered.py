@@ -142,3 +142,15 @@ def test_pure_noise_selects_the_empty_support():
     A, generator = unit_library(seed=1)
     noise = 0.02 * torch.randn(A.shape[0], generator=generator, dtype=torch.float64)
     assert SparseRegression().select(A, noise) == []
+
+
+def test_a_term_whose_column_repeats_an_earlier_one_is_left_out_and_the_earlier_spelling_kept():
+    from torchpaml._diagnostics.discovery.closed_form_search import _distinct
+
+    generator = torch.Generator().manual_seed(0)
+    a, b, c = (torch.randn(500, dtype=torch.float64, generator=generator) for _ in range(3))
+    columns = torch.stack([a, 2 * a, b, -b, c, a + 1e-3 * c], dim=1)
+    unit = columns / columns.norm(dim=0)
+    assert _distinct([0, 1, 2, 3, 4, 5], unit) == [0, 2, 4, 5]  # 2a and -b repeat a and b; a + 1e-3 c does not
+    assert _distinct([1, 0, 3], unit) == [1, 3]  # the order given decides which spelling stays
+    assert _distinct([], unit) == []

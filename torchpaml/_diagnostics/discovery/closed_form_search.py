@@ -61,12 +61,17 @@ def _support(score: ModelScore) -> tuple[list[tuple[str, str]], list[float]]:
 def _distinct(indices: list[int], unit: torch.Tensor) -> list[int]:
     """``indices`` without the columns of ``unit`` (unit norm) that repeat an earlier one (|cosine| > 1 - 1e-9):
     ``Abs(level)`` and ``level*tanh(level/eps)`` are ``level`` on a record where the level stays positive, and
-    the library's order puts the plainer spelling first."""
-    kept: list[int] = []
-    for i in indices:
-        if not kept or float((unit[:, kept].T @ unit[:, i]).abs().max()) < 1 - DUPLICATE:
-            kept.append(i)
-    return kept
+    the library's order puts the plainer spelling first. The cosines come from one Gram matrix of ``indices``' columns:
+    column by column against those kept, the two-mass chain's 912 terms on 24 000 samples took 146 s, silent."""
+    if not indices:
+        return []
+    selected = unit[:, indices]
+    cosines = (selected.T @ selected).abs()  # (len(indices), len(indices))
+    kept: list[int] = []  # positions in indices
+    for j in range(len(indices)):
+        if not kept or float(cosines[kept, j].max()) < 1 - DUPLICATE:
+            kept.append(j)
+    return [indices[j] for j in kept]
 
 
 def _judge(physics: ModelScore, library: EffectEvidence | None, discovered: ModelScore, rule: SelectionRule
