@@ -140,7 +140,12 @@ STOPPED = "stopped at its budget, the refit's parameters kept"
 
 def _whole(row: dict) -> str:
     """A whole diagnosis of ``bench_worst_case.py --cases``: its seconds, what it added, the discovery."""
-    searched = "searched" if row["searched"] else "said the model complete and stopped"
+    if row["searched"]:
+        searched = "searched"
+    elif row["added"]:  # the diagnosis then searches on the physics alone, against the ladder's effects
+        searched = "found the last rung complete, then searched on the physics alone and kept the ladder's effects"
+    else:
+        searched = "said the model complete and stopped"
     return (f"{row['seconds']:.1f} s; added {', '.join(row['added']) or 'nothing'}, validation "
             f"{100 * row['nrmse_validation']:.2f} %; the discovery {searched} (`{row['discovery']}`)")
 
@@ -154,7 +159,7 @@ def _bounded(bounded: dict) -> list[str]:
         lines.append(f"| the rung after LuGre friction under a sharp sign | {memory['samples']:,} | its refit "
                      f"{low['refit']:.2f} s; the rung's fit {low['rung_fit']:.2f} s "
                      f"({STOPPED if low['stopped'] else 'ended'}, "
-                     f"validation {100 * low['nrmse_validation']:.2f} %); unbounded it takes {high['rung_fit']:.1f} s "
+                     f"validation {100 * low['nrmse_validation']:.2f} %); unbounded it takes {high['rung_fit']:.2f} s "
                      f"({_ratio(high['rung_fit'] / high['refit'])} its refit; validation "
                      f"{100 * high['nrmse_validation']:.2f} %) |")
     pendulum = bounded.get("pendulum")
