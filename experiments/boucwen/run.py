@@ -31,7 +31,7 @@ from pathlib import Path
 
 from mass_spring_damper import frequency_response_start  # the user's physics, beside this script
 
-from torchpaml import Estimate, Ranker, Record, default_effects, diagnose, simulate_record, write_report
+from torchpaml import Diagnosis, Estimate, Ranker, Record, default_effects, diagnose, simulate_record, write_report
 from torchpaml.cli.progress import progress_lines
 from torchpaml.leaderboard import (SCHEMA_VERSION, arguments, benchmark, diagnosed_goal, hybrid_entry, ladder_entries,
                                    tried_entries, write_result)
@@ -49,6 +49,13 @@ def held_out_error(final, record: Record) -> float:
     return float((record.y - y)[-held:, 0].square().mean().sqrt())
 
 
+def diagnosed(train: Record, validation: Record, shortlist: int = 2) -> Diagnosis:
+    """The diagnosis of the leaderboard's Bouc-Wen run (also ``benchmarks/bench_same_answer.py``'s)."""
+    alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
+    return diagnose(frequency_response_start(train), default_effects(), train, validation,
+                    ranker=Ranker(shortlist=shortlist), initial_state=Estimate(), alpha=alpha)
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = arguments(BENCHMARK, __doc__, DATA)
     args = parser.parse_args(argv)
@@ -59,8 +66,7 @@ def main(argv: list[str] | None = None) -> dict:
     train, validation = BENCHMARK.split(record)
     tests = {name: Record.from_csv(args.data / f"{name}.csv", name=name) for name in BENCHMARK.tests}
     alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
-    diagnosis = diagnose(frequency_response_start(train), default_effects(), train, validation,
-                         ranker=Ranker(shortlist=args.shortlist), initial_state=Estimate(), alpha=alpha)
+    diagnosis = diagnosed(train, validation, args.shortlist)
     write_report(diagnosis, args.out / "diagnosis")
     models = ladder_entries(BENCHMARK, diagnosis, tests)
     final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy

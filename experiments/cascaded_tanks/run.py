@@ -47,8 +47,8 @@ from pathlib import Path
 from tanks import (FREE_SPILL_RATE, MAX_SPILL_RATE, LowerOverflow, SensorClip, SensorOffset, TorricelliOutflow,
                    TwoTanks, UpperOverflow)
 
-from torchpaml import (Budget, DeadZone, Discoverer, Estimate, ModelScore, OutputSaturation, Record, diagnose,
-                       fit_physics, simulate_record, write_report)
+from torchpaml import (Budget, DeadZone, Diagnosis, Discoverer, Estimate, ModelScore, OutputSaturation, Record,
+                       diagnose, fit_physics, simulate_record, write_report)
 from torchpaml.cli.progress import progress_lines
 from torchpaml.leaderboard import (SCHEMA_VERSION, agreement_evidence, benchmark, diagnosed_goal, hybrid_entry,
                                    hypothesis_entry, ladder_entries, tried_entries, validation_agreement, with_effect,
@@ -112,6 +112,17 @@ def measured(models: list[dict], spill: dict | None, validation: float, tried: l
     return evidence | agreement, (sentence,) if agreement else ()
 
 
+def user_physics() -> TwoTanks:
+    """The user's linear two-tank physics, where every fit starts: time constants of 100 s, a gain of 2 V/V."""
+    return TwoTanks(k1=0.01, k2=0.01, k3=0.01, k4=0.02, learn=("k1", "k3", "k4"))
+
+
+def diagnosed(train: Record, validation: Record, spill_rate: float = MAX_SPILL_RATE) -> Diagnosis:
+    """The diagnosis of the leaderboard's tanks run (also ``benchmarks/bench_same_answer.py``'s)."""
+    alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
+    return diagnose(user_physics(), candidates(spill_rate), train, validation, initial_state=Estimate(), alpha=alpha)
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="output folder")
@@ -129,10 +140,10 @@ def main(argv: list[str] | None = None) -> dict:
     estimation = Record.from_csv(args.data / f"{BENCHMARK.train}.csv", "estimation", hold=BENCHMARK.hold)
     tests = {name: Record.from_csv(args.data / f"{name}.csv", name, hold=BENCHMARK.hold) for name in BENCHMARK.tests}
     train, validation = BENCHMARK.split(estimation)
-    physics = TwoTanks(k1=0.01, k2=0.01, k3=0.01, k4=0.02, learn=("k1", "k3", "k4"))  # 100 s; 2 V/V
     spill_rate = FREE_SPILL_RATE if args.free_spill else MAX_SPILL_RATE
     alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
-    diagnosis = diagnose(physics, candidates(spill_rate), train, validation, initial_state=Estimate(), alpha=alpha)
+    diagnosis = diagnosed(train, validation, spill_rate)
+    physics = user_physics()
     write_report(diagnosis, args.out / "diagnosis")
     models = ladder_entries(BENCHMARK, diagnosis, tests)
     for row, step in zip(models, diagnosis.ladder.steps, strict=True):

@@ -37,7 +37,8 @@ from pathlib import Path
 
 from rigid_body import RigidBody  # the user's physics, beside this script
 
-from torchpaml import ConstantForce, CoulombFriction, Estimate, QuadraticDamping, Ranker, Record, diagnose, write_report
+from torchpaml import (ConstantForce, CoulombFriction, Diagnosis, Estimate, QuadraticDamping, Ranker, Record, diagnose,
+                       write_report)
 from torchpaml.cli.progress import progress_lines
 from torchpaml.leaderboard import (SCHEMA_VERSION, agreement_evidence, arguments, benchmark, diagnosed_goal,
                                    hybrid_entry, hypothesis_entry, ladder_entries, tried_entries, validation_agreement,
@@ -70,6 +71,13 @@ def measured(final, parts: list[Record], models: list[dict], tried: list[dict]) 
     return evidence | agreement, (sentence,) if agreement else ()
 
 
+def diagnosed(train: Record, validation: Record, shortlist: int = 2) -> Diagnosis:
+    """The diagnosis of the leaderboard's EMPS run (also ``benchmarks/bench_same_answer.py``'s)."""
+    alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
+    return diagnose(RigidBody(M=100.0, Fv=100.0), candidates(), train, validation, ranker=Ranker(shortlist=shortlist),
+                    initial_state=Estimate(), alpha=alpha)
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = arguments(BENCHMARK, __doc__, DATA)
     args = parser.parse_args(argv)
@@ -80,8 +88,7 @@ def main(argv: list[str] | None = None) -> dict:
     train, validation = BENCHMARK.split(estimation)
     tests = {name: Record.from_csv(args.data / f"{name}.csv", name) for name in BENCHMARK.tests}
     alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
-    diagnosis = diagnose(RigidBody(M=100.0, Fv=100.0), candidates(), train, validation,
-                         ranker=Ranker(shortlist=args.shortlist), initial_state=Estimate(), alpha=alpha)
+    diagnosis = diagnosed(train, validation, args.shortlist)
     write_report(diagnosis, args.out / "diagnosis")
     models = ladder_entries(BENCHMARK, diagnosis, tests)  # with test_velocity: the registry's velocity="velocity"
     final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy

@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from torchpaml import Discoverer, Oscillator, Ranker, Record, default_effects, diagnose, write_report
+from torchpaml import Diagnosis, Discoverer, Oscillator, Ranker, Record, default_effects, diagnose, write_report
 from torchpaml.cli.progress import progress_lines
 from torchpaml.leaderboard import (SCHEMA_VERSION, arguments, benchmark, diagnosed_goal, hybrid_entry, ladder_entries,
                                    noise_floor, tried_entries, write_result)
@@ -82,6 +82,14 @@ def nrmse(rmse: dict[str, float], tests: dict[str, Record]) -> dict[str, float]:
             for name, value in rmse.items()}
 
 
+def diagnosed(train: Record, validation: Record, shortlist: int = 2) -> Diagnosis:
+    """The diagnosis of the leaderboard's Silverbox run, its discovery aside (also
+    ``benchmarks/bench_same_answer.py``'s)."""
+    alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
+    return diagnose(frequency_response_start(train), default_effects(), train, validation,
+                    ranker=Ranker(shortlist=shortlist), alpha=alpha)
+
+
 def main(argv: list[str] | None = None) -> dict:
     parser = arguments(BENCHMARK, __doc__, DATA)
     parser.add_argument("--discover", action="store_true", help="also discover a force outside the library")
@@ -92,8 +100,7 @@ def main(argv: list[str] | None = None) -> dict:
     train, validation = BENCHMARK.split(Record.from_csv(args.data / f"{BENCHMARK.train}.csv"))
     tests = {name: Record.from_csv(args.data / f"{name}.csv", name=name) for name in BENCHMARK.tests}
     alpha = 1.05 * max(float(r.u.abs().max()) for r in (train, validation))
-    diagnosis = diagnose(frequency_response_start(train), default_effects(), train, validation,
-                         ranker=Ranker(shortlist=args.shortlist), alpha=alpha)
+    diagnosis = diagnosed(train, validation, args.shortlist)
     write_report(diagnosis, args.out / "diagnosis")
     models = [{**row, "nrmse": nrmse(row["rmse"], tests)} for row in ladder_entries(BENCHMARK, diagnosis, tests)]
     final, alarm = diagnosis.ladder.final, diagnosis.hybrids[-1].adequacy
