@@ -95,8 +95,10 @@ def project(regressors: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tenso
 
 
 class _ProjectedFit(torch.autograd.Function):
-    r"""$\hat r(\rho) = \Psi c(\rho)$ for each output (:func:`projected_fit`), with its exact derivative in the poles
-    from two of the residual's own responses (module docstring): for a cotangent $g$ and $v = c(g)$ (the coefficients
+    r"""$\hat r(\rho) = \Psi c(\rho)$ for each output (:func:`projected_fit`), with its derivative in the poles
+    from two of the residual's responses in observable form
+    (:meth:`~torchpaml.ChebyshevHammerstein.observable_response`; module docstring), exact where that form and the
+    regressors round alike (coarse sampling), a search direction where the poles sit near $z = 1$: for a cotangent $g$ and $v = c(g)$ (the coefficients
     that project $g$), $g^\top d\hat r = (g - \Psi v)^\top d\Psi\,c + (e - \Psi c)^\top d\Psi\,v$. Forward and
     backward run at the pole values given (:func:`_poles_at`)."""
 
@@ -121,7 +123,7 @@ class _ProjectedFit(torch.autograd.Function):
 
         def response(columns: torch.Tensor) -> torch.Tensor:
             laid_out = _laid_out(columns, ctx.shape)
-            return per_record(lambda t, u: residual.response(t, u, laid_out), ctx.t, ctx.u).reshape(g.shape)
+            return per_record(lambda t, u: residual.observable_response(t, u, laid_out), ctx.t, ctx.u).reshape(g.shape)
 
         with _poles_at(residual, poles), torch.enable_grad():
             scalar = ((g - solver.M @ v) * response(coefficients)).sum() + (misfit * response(v)).sum()

@@ -230,12 +230,26 @@ class ChebyshevHammerstein(AbstractResidual):
         feature) has the same transfer functions, but its companion matrix's discretisation with poles within 0.002
         of $z = 1$ (h = 1 ms) rounds along another path, 9e-4 apart at random coefficients; with a fit's
         coefficients, which cancel between nearly collinear columns, EMPS's residual left 0.58 of its target where
-        its fit left 0.45, and the pole search's derivative (two responses) was not the derivative of what it
-        minimised."""
+        its fit left 0.45. That form remains the pole search's cheap derivative (:meth:`observable_response`)."""
         regressors = self.regressors(t, u)  # (batch, time, features, m + 1)
         if self.outputs == 1:
             return torch.einsum("btkj,kj->bt", regressors, coefficients)[..., None]
         return torch.einsum("btkj,okj->bto", regressors, coefficients)
+
+    def observable_response(self, t: torch.Tensor, u: torch.Tensor, coefficients: torch.Tensor) -> torch.Tensor:
+        r""":meth:`response`'s transfer functions in observable canonical form ($A^\top$, the numerators as its input
+        matrix, $e_m^\top$, the direct terms), one recursion per feature instead of $m$: $m$ times cheaper to
+        differentiate in the poles. The pole search takes its search direction from it; its line search evaluates the
+        projection itself, so where this form rounds apart from the regressors (poles near $z = 1$) only the direction
+        is approximate, never a figure. (batch, time, outputs)."""
+        h = uniform_step(t)
+        phi = self.features(u)
+        m = self.order
+        A = torch.cat([torch.eye(m, dtype=torch.float64)[1:], -self.denominator().flip(0)[:m][None]])
+        C = torch.zeros(1, m, dtype=torch.float64)
+        C[0, -1] = 1.0
+        per_output = coefficients[None] if self.outputs == 1 else coefficients
+        return torch.cat([simulate_lti(A.T, c[:, :m].T, C, c[None, :, m], h, phi) for c in per_output], dim=-1)
 
     def forward(self, t: torch.Tensor, u: torch.Tensor, y_physics: torch.Tensor | None = None) -> torch.Tensor:
         return self.response(t, u, self.coefficients())
