@@ -65,7 +65,6 @@ def refit_evaluations(share: float, rung_fit: int, max_nfev: int) -> float:
     return share * max(rung_fit, max_nfev)
 
 
-
 _ACTIVE: contextvars.ContextVar[Budget | None] = contextvars.ContextVar("torchpaml_budget", default=None)
 
 
