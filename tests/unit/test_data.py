@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from torchpaml import Record
+from torchpaml import DataError, Record
 
 
 def _experiment():
@@ -45,3 +45,15 @@ def test_hold_is_checked_read_from_metadata_and_kept_by_windows(tmp_path):
     assert Record.from_csv(path, hold="foh").hold == "foh"  # the argument wins over the metadata
     part = record.window(2, 6, "part")
     assert (part.hold, part.name, len(part.t)) == ("zoh", "part", 4)
+
+
+@pytest.mark.parametrize("line, says", [('# {"signal": "pseudorandom", "seed": 0', "not JSON"),
+                                        ("# measured on the bench", "not JSON"),
+                                        ("# [1, 2]", "must be a JSON object")])
+def test_a_metadata_line_that_is_not_a_json_object_is_refused_by_name(tmp_path, line, says):
+    """A CSV whose first line starts with '#' but is not a JSON object (a column deleted with a spreadsheet, a
+    free-text note) is a DataError that names the line and the fix, not an internal error."""
+    path = tmp_path / "record.csv"
+    path.write_text(f"{line}\nt,u,y\n0,0,0\n0.1,1,0.5\n")
+    with pytest.raises(DataError, match=f"first line.*{says}.*repair it or delete the line"):
+        Record.from_csv(path)

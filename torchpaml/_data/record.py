@@ -20,6 +20,21 @@ __all__ = ["Record"]
 _COLUMNS = ("t", "u", "y")
 
 
+def _metadata(line: str, path: Path) -> dict:
+    """The metadata of a CSV's first line, ``# {...}``: a JSON object, read as data (``json.loads``, nothing run)."""
+    text = line.lstrip("#").strip() or "{}"
+    try:
+        metadata = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise DataError(f"{path}: its first line starts with '#', so it is read as the record's metadata, a JSON "
+                        f"object such as '# {{\"hold\": \"zoh\"}}', but it is not JSON ({err.msg} at column "
+                        f"{err.colno}); repair it or delete the line") from None
+    if not isinstance(metadata, dict):
+        raise DataError(f"{path}: its first line's metadata must be a JSON object ({{...}}), got "
+                        f"{type(metadata).__name__}; repair it or delete the line")
+    return metadata
+
+
 @dataclass
 class Record:
     """One record of a device: time t (time,) in s, input u (time, n_u), output y (time, n_y), float64.
@@ -158,7 +173,7 @@ class Record:
         lines = path.read_text().splitlines()
         metadata = {}
         if lines and lines[0].startswith("#"):
-            metadata = json.loads(lines[0].lstrip("#").strip() or "{}")
+            metadata = _metadata(lines[0], path)
             lines = lines[1:]
         if not lines or not lines[0].strip():
             raise DataError(f"{path} is empty; expected a header 't,u,y' followed by one row per sample")
