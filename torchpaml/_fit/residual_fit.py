@@ -95,12 +95,11 @@ def project(regressors: torch.Tensor, target: torch.Tensor) -> tuple[torch.Tenso
 
 
 class _ProjectedFit(torch.autograd.Function):
-    r"""$\hat r(\rho) = \Psi c(\rho)$ for each output (:func:`projected_fit`), with its derivative in the poles
+    r"""$\hat r(\rho) = \Psi c(\rho)$ for each output (:func:`projected_fit`), with its exact derivative in the poles
     from two of the residual's responses in observable form
-    (:meth:`~torchpaml.ChebyshevHammerstein.observable_response`; module docstring), exact where that form and the
-    regressors round alike (coarse sampling), a search direction where the poles sit near $z = 1$: for a cotangent $g$ and $v = c(g)$ (the coefficients
-    that project $g$), $g^\top d\hat r = (g - \Psi v)^\top d\Psi\,c + (e - \Psi c)^\top d\Psi\,v$. Forward and
-    backward run at the pole values given (:func:`_poles_at`)."""
+    (:meth:`~torchpaml.ChebyshevHammerstein.observable_response`; module docstring): for a cotangent $g$ and
+    $v = c(g)$ (the coefficients that project $g$), $g^\top d\hat r = (g - \Psi v)^\top d\Psi\,c + (e - \Psi c)^\top
+    d\Psi\,v$. Forward and backward run at the pole values given (:func:`_poles_at`)."""
 
     @staticmethod
     def forward(ctx, residual, t, u, target, *poles):

@@ -224,13 +224,7 @@ class ChebyshevHammerstein(AbstractResidual):
     def response(self, t: torch.Tensor, u: torch.Tensor, coefficients: torch.Tensor) -> torch.Tensor:
         r"""$r$ for the linear parameters ``coefficients`` (as :meth:`coefficients` lays them out), (batch, time,
         outputs): per output, the multi-input filter $\sum_k R_k(s)[T_{2k+1}]$, as the :meth:`regressors` times the
-        coefficients, the realisation the fit projects on. Differentiable in the poles and in ``coefficients``.
-
-        One realisation for the fit and the model: a second one (the observable canonical form, one recursion per
-        feature) has the same transfer functions, but its companion matrix's discretisation with poles within 0.002
-        of $z = 1$ (h = 1 ms) rounds along another path, 9e-4 apart at random coefficients; with a fit's
-        coefficients, which cancel between nearly collinear columns, EMPS's residual left 0.58 of its target where
-        its fit left 0.45. That form remains the pole search's cheap derivative (:meth:`observable_response`)."""
+        coefficients, the realisation the fit projects on. Differentiable in the poles and in ``coefficients``."""
         regressors = self.regressors(t, u)  # (batch, time, features, m + 1)
         if self.outputs == 1:
             return torch.einsum("btkj,kj->bt", regressors, coefficients)[..., None]
@@ -238,10 +232,10 @@ class ChebyshevHammerstein(AbstractResidual):
 
     def observable_response(self, t: torch.Tensor, u: torch.Tensor, coefficients: torch.Tensor) -> torch.Tensor:
         r""":meth:`response`'s transfer functions in observable canonical form ($A^\top$, the numerators as its input
-        matrix, $e_m^\top$, the direct terms), one recursion per feature instead of $m$: $m$ times cheaper to
-        differentiate in the poles. The pole search takes its search direction from it; its line search evaluates the
-        projection itself, so where this form rounds apart from the regressors (poles near $z = 1$) only the direction
-        is approximate, never a figure. (batch, time, outputs)."""
+        matrix, $e_m^\top$, the direct terms), one $m$-state recursion driven by every feature at once instead of one
+        per feature: cheaper to differentiate in the poles, the pole search's derivative. Both forms are simulated by the same exact
+        recursion on their states (:func:`~torchpaml._simulate.lti.simulate_lti`) and agree to rounding, also with
+        poles near $z = 1$ (tested at h = 1 ms). (batch, time, outputs)."""
         h = uniform_step(t)
         phi = self.features(u)
         m = self.order
