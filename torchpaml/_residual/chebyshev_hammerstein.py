@@ -47,7 +47,7 @@ from torch import nn
 
 from torchpaml._errors import ConfigurationError, DomainError
 from torchpaml._residual.base import AbstractResidual
-from torchpaml._simulate.lti import simulate_lti
+from torchpaml._simulate.lti import simulate_lti, simulate_lti_states
 from torchpaml._grid import uniform_step
 
 __all__ = ["ChebyshevHammerstein", "chebyshev_t"]
@@ -204,9 +204,7 @@ class ChebyshevHammerstein(AbstractResidual):
         A = torch.cat([torch.eye(m, dtype=torch.float64)[1:], -D.flip(0)[:m][None]])  # companion form
         B = torch.zeros(m, 1, dtype=torch.float64)
         B[-1, 0] = 1.0
-        C = torch.eye(m, dtype=torch.float64)
-        zero = torch.zeros(m, 1, dtype=torch.float64)
-        states = simulate_lti(A, B, C, zero, h, phi.transpose(1, 2).reshape(-1, time, 1))
+        states = simulate_lti_states(A, B, h, phi.transpose(1, 2).reshape(-1, time, 1))
         states = states.reshape(batch, n, time, m).transpose(1, 2)
         return torch.cat([states, phi[..., None]], dim=-1)
 
@@ -233,9 +231,9 @@ class ChebyshevHammerstein(AbstractResidual):
     def observable_response(self, t: torch.Tensor, u: torch.Tensor, coefficients: torch.Tensor) -> torch.Tensor:
         r""":meth:`response`'s transfer functions in observable canonical form ($A^\top$, the numerators as its input
         matrix, $e_m^\top$, the direct terms), one $m$-state recursion driven by every feature at once instead of one
-        per feature: cheaper to differentiate in the poles, the pole search's derivative. Both forms are simulated by the same exact
-        recursion on their states (:func:`~torchpaml._simulate.lti.simulate_lti`) and agree to rounding, also with
-        poles near $z = 1$ (tested at h = 1 ms). (batch, time, outputs)."""
+        per feature: cheaper to differentiate in the poles, the pole search's derivative. Both forms are simulated by
+        the same exact recursion on their states (:func:`~torchpaml._simulate.lti.simulate_lti`) and agree to
+        rounding, also with poles near $z = 1$ (tested at h = 1 ms). (batch, time, outputs)."""
         h = uniform_step(t)
         phi = self.features(u)
         m = self.order

@@ -29,7 +29,8 @@ from torchpaml._errors import DataError
 from torchpaml._grid import check_hold, uniform_step
 from torchpaml._simulate.scan import constant_recurrence
 
-__all__ = ["discrete_response", "discretize", "exact_step", "foh_exponent", "simulate_lti"]
+__all__ = ["discrete_response", "discrete_states", "discretize", "exact_step", "foh_exponent", "simulate_lti",
+           "simulate_lti_states"]
 
 
 def foh_exponent(A: torch.Tensor, B: torch.Tensor, h: float, ramp: bool = True) -> torch.Tensor:
@@ -78,7 +79,13 @@ def simulate_lti(
     Returns:
         y: shape (batch, time, p).
     """
-    return discrete_response(*discretize(A, B, h, hold), C, D, u, x0)
+    return simulate_lti_states(A, B, h, u, x0, hold) @ C.T + u @ D.T
+
+
+def simulate_lti_states(A: torch.Tensor, B: torch.Tensor, h: float, u: torch.Tensor, x0: torch.Tensor | None = None,
+                        hold: str = "foh") -> torch.Tensor:
+    """The states of :func:`simulate_lti`, (batch, time, n): its response with $C = I$, $D = 0$."""
+    return discrete_states(*discretize(A, B, h, hold), u, x0)
 
 
 def discrete_response(
@@ -101,10 +108,16 @@ def discrete_response(
     Returns:
         y: shape (batch, time, p).
     """
+    return discrete_states(Phi, G0, G1, u, x0) @ C.T + u @ D.T
+
+
+def discrete_states(Phi: torch.Tensor, G0: torch.Tensor, G1: torch.Tensor, u: torch.Tensor,
+                    x0: torch.Tensor | None = None) -> torch.Tensor:
+    """The states of :func:`discrete_response`, (batch, time, n), by the parallel scan (module docstring)."""
     if x0 is None:
         x0 = torch.zeros(u.shape[0], Phi.shape[0], dtype=Phi.dtype, device=Phi.device)
-    drive = u[:, :-1] @ G0.T + u[:, 1:] @ G1.T  # (batch, time - 1, n)
-    return constant_recurrence(Phi, drive, x0) @ C.T + u @ D.T
+    drive = (u @ G0.T)[:, :-1] + (u @ G1.T)[:, 1:]  # (batch, time - 1, n)
+    return constant_recurrence(Phi, drive, x0)
 
 
 def exact_step(physics: Dynamics, t: torch.Tensor) -> float | None:

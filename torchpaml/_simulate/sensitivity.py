@@ -9,7 +9,8 @@ $J_{t,j} = \partial \hat y_t / \partial \rho_j$ for the raw (unconstrained) para
   $$ S_{k+1} = \Phi S_k + \Phi' x_k + \Gamma_0' u_k + \Gamma_1' u_{k+1}, \qquad S_0 = 0, \qquad
      \partial y_k/\partial\rho_j = C S_k + C' x_k + D' u_k, $$
 
-  so one filter run with a row per column gives them all, after one run for the states. The primed
+  so one run of that recurrence (the parallel scan of the states) with a row per column gives them all, after
+  one run for the states. The primed
   matrices come from central differences of (A, B, C, D) and the exponential's Fréchet derivative;
 * otherwise: Newton runs once (:func:`~torchpaml._simulate.shooting.solve_shooting`, RK4 or TR-BDF2), then
   each column is a central difference of two single sweeps from the converged starts plus the
@@ -21,10 +22,10 @@ Central differences take the step :func:`~torchpaml._simulate.differences.differ
 Differences, not forward mode: on torch 2.13, forward-mode AD sends every operation that mixes a
 dual tensor with a Python number through Python decompositions, about a hundred times slower than the
 operation itself, and a physics' step is full of them. On the exact path the recurrence needs two
-filter runs for all columns, where differences of whole simulations need 2p + 1.
+scans for all columns, where differences of whole simulations need 2p + 1.
 
 With ``initial_state=True`` the Jacobian gains one column per state, $\partial\hat y_t/\partial x_{0,i}$:
-on the exact path the free response $C\Phi^k e_i$ (rows of the same filter run with $S_0 = e_i$), in
+on the exact path the free response $C\Phi^k e_i$ (rows of the same scan with $S_0 = e_i$), in
 the engine the same passes as the parameters' with the initial state as the direction.
 """
 
@@ -40,7 +41,8 @@ from torchpaml._errors import ConfigurationError
 from torchpaml._grid import check_hold
 from torchpaml._simulate.differences import difference_step
 from torchpaml._simulate.dynamics import Dynamics
-from torchpaml._simulate.lti import discrete_response, discretize, exact_step, foh_exponent
+from torchpaml._simulate.lti import discrete_states, discretize, exact_step, foh_exponent
+from torchpaml._simulate.scan import constant_recurrence
 from torchpaml._simulate.method import Method
 from torchpaml._simulate.shooting import solve_shooting
 from torchpaml._simulate.blowup import checked_output
@@ -126,8 +128,7 @@ def _exact_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], h: float, t
     with torch.no_grad():
         (Phi, G0, G1, C, D), derivatives = _discretised_derivatives(physics, raw, h, hold)
         n, batch = Phi.shape[0], u.shape[0]
-        eye, zeros = torch.eye(n, dtype=Phi.dtype), torch.zeros(n, n, dtype=Phi.dtype)
-        states = discrete_response(Phi, G0, G1, eye, zeros[:, : G0.shape[1]], u, x0)  # (batch, time, n)
+        states = discrete_states(Phi, G0, G1, u, x0)  # (batch, time, n)
         y = checked_output(states @ C.T + u @ D.T, t)
         drives, starts, direct = [], [], []
         if derivatives is not None:
@@ -141,8 +142,8 @@ def _exact_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], h: float, t
             starts.append(torch.eye(n, dtype=x0.dtype)[:, None].expand(n, batch, n))
             direct.append(torch.zeros(n, *y.shape, dtype=y.dtype))
         drives, starts = torch.cat(drives), torch.cat(starts)
-        responses = discrete_response(Phi, eye, zeros, C, zeros[: C.shape[0]], drives.flatten(0, 1),
-                                      starts.flatten(0, 1))
+        # S_{k+1} = Phi S_k + drive_k: the last sample's drive reaches no output
+        responses = constant_recurrence(Phi, drives.flatten(0, 1)[:, :-1], starts.flatten(0, 1)) @ C.T
         J = responses.reshape(len(drives), *y.shape) + torch.cat(direct)
     return y, J.movedim(0, -1)
 

@@ -56,7 +56,7 @@ from torchpaml._simulate.method import Method
 from torchpaml._errors import ConfigurationError, SimulationError
 from torchpaml._budget import checkpoint
 from torchpaml._grid import check_hold
-from torchpaml._simulate.lti import exact_step, simulate_lti
+from torchpaml._simulate.lti import exact_step, simulate_lti_states
 from torchpaml._simulate.scan import linear_recurrence
 from torchpaml._simulate.warm import WarmStart
 
@@ -285,8 +285,7 @@ def linear_guess(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: torch.
         return None
     with torch.no_grad():
         A, B, _, _ = base.state_space()
-        n, m = B.shape
-        return simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, m, dtype=A.dtype), h, u, x0, hold)
+        return simulate_lti_states(A, B, h, u, x0, hold)
 
 
 def _completed(guess: torch.Tensor, x0: torch.Tensor) -> torch.Tensor:

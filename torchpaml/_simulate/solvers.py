@@ -43,7 +43,7 @@ from torchpaml._simulate.blowup import BLOWUP, checked_output
 from torchpaml._simulate.compiled_jacobian import compiled_jacobian
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.fixed_step import simulate_fixed_step
-from torchpaml._simulate.lti import exact_step, simulate_lti
+from torchpaml._simulate.lti import exact_step, simulate_lti, simulate_lti_states
 from torchpaml._simulate.ode import simulate_ode
 from torchpaml._simulate.sensitivity import difference_jacobian, exact_jacobian, shooting_jacobian
 from torchpaml._simulate.shooting import simulate_shooting
@@ -155,9 +155,7 @@ class Exact(Solver):
 
     def states(self, physics: Dynamics, t, u, x0, *, warm=None, hold="foh"):
         A, B, _, _ = self._matrices(physics)
-        n, m = B.shape
-        return simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, m, dtype=A.dtype), uniform_step(t), u,
-                            x0, hold)
+        return simulate_lti_states(A, B, uniform_step(t), u, x0, hold)
 
     def jacobian(self, physics: Dynamics, raw, t, u, x0, *, warm=None, hold="foh", initial_state=False):
         return exact_jacobian(physics, raw, t, u, x0, initial_state, hold)

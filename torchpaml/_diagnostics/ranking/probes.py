@@ -17,7 +17,7 @@ from torchpaml._data import Record
 from torchpaml._errors import DataError, SimulationError
 from torchpaml._physics.base import AbstractPhysics, complete_state
 from torchpaml._grid import uniform_step
-from torchpaml._simulate.lti import simulate_lti
+from torchpaml._simulate.lti import simulate_lti, simulate_lti_states
 from torchpaml._simulate.solvers import Auto, Solver
 from torchpaml._simulate.warm import WarmStart
 from torchpaml._simulate.blowup import checked_output
@@ -56,8 +56,7 @@ class TangentLinear:
             for record, x0 in zip(train, initial_states, strict=True):
                 h = uniform_step(record.t)
                 u = record.u[None]
-                states = simulate_lti(A, B, torch.eye(n, dtype=A.dtype), torch.zeros(n, B.shape[1], dtype=A.dtype), h, u,
-                                      x0.reshape(1, n), record.hold)
+                states = simulate_lti_states(A, B, h, u, x0.reshape(1, n), record.hold)
                 self.records.append((record.elapsed, u, states, h, record.hold))
 
     @classmethod
