@@ -74,7 +74,10 @@ def test_the_constant_scan_is_exact_with_every_pole_near_one():
     assert float(((moved - z).norm(dim=1) / z.norm(dim=1)).max()) < 1e-10
 
 
-def test_the_constant_scans_gradients_match_finite_differences():
+def test_the_constant_scans_adjoint_and_tangent_match_finite_differences():
+    """Reverse mode (the adjoint scan), forward mode (the tangent scan) and the second derivatives through the
+    adjoint, against central differences."""
     A, b, z0 = _problem(11, n=3, batch=2, seed=1)
     inputs = (A[0, 0].clone().requires_grad_(), b.requires_grad_(), z0.requires_grad_())
-    assert torch.autograd.gradcheck(constant_recurrence, inputs)
+    assert torch.autograd.gradcheck(constant_recurrence, inputs, check_forward_ad=True)
+    assert torch.autograd.gradgradcheck(constant_recurrence, inputs)
