@@ -10,6 +10,7 @@ import torch
 from torchpaml import RK4
 from torchpaml import (
     ChebyshevHammerstein,
+    CoulombFriction,
     cosine,
     Record,
     fit_chebyshev_hammerstein,
@@ -26,6 +27,7 @@ from torchpaml import (
     sine,
 )
 from torchpaml._certificates import draw_chebyshev
+from torchpaml._fit.physics_fit import SETTLING
 from torchpaml._fit.residual_fit import RIDGE, _ProjectedFit, project, projected_fit
 
 
@@ -283,7 +285,7 @@ def test_a_fit_that_stalls_on_a_short_step_is_restarted_from_where_it_stopped(mo
     def scripted(residual, x, *, max_nfev, **options):
         cost, status, nfev = next(runs)
         limits.append(max_nfev)
-        return types.SimpleNamespace(x=x + 1.0, cost=cost, status=status, nfev=nfev)
+        return types.SimpleNamespace(x=x + 1.0, cost=cost, status=status, nfev=nfev, grad=np.zeros_like(x))
 
     monkeypatch.setattr(physics_fit, "least_squares", scripted)
     problem = types.SimpleNamespace(residual=None, evaluate=None)
@@ -322,3 +324,25 @@ def test_a_saturated_parameter_starts_at_its_raw_limit_so_where_an_earlier_fit_l
     assert fits[0].parameters == fits[1].parameters  # the same numbers, to the last digit
     assert fits[0].parameters["zeta"] == pytest.approx(0.3, rel=1e-6)
     assert 0.0 < fits[0].parameters["coulomb_friction.eps"] <= math.exp(-40.0)
+
+
+def test_an_optimum_beyond_a_bound_ends_on_it_wherever_the_evaluation_limit_stopped_the_crawl(grid):
+    """A Coulomb friction whose sign is sharper (eps = 1e-3) than its bound lets (eps >= 5e-3): the fit presses eps
+    on the bound. Stopped by its evaluation limit after 6 evaluations, or let go on to 60, it ends with eps on the
+    bound to 1e-12 and the same other parameters to 1e-5 (trf alone, stopped at 6, left eps 69 % above the bound,
+    the fitted model where its path stood: on EMPS the rung's fit crawled that way to its limit, and records that
+    differ by 1e-12 moved its figures by 2.4e-5)."""
+    truth = Oscillator(zeta=0.2, omega0=2.0, gain=4.0, learn=()) + CoulombFriction(1.0, eps=1e-3)
+    u = pseudorandom(grid, 1.0, seed=0)
+    y = simulate(truth, grid, u).detach()
+    y = y + 0.02 * y.std() * torch.randn(y.shape, generator=torch.Generator().manual_seed(1), dtype=torch.float64)
+    fits = []
+    for max_nfev in (6, 60):
+        model = Oscillator(zeta=0.3, omega0=1.8, gain=3.5) + CoulombFriction(0.5, eps=0.05, learn=("Fc", "eps"))
+        fits.append(fit_physics(model, Record.records(grid, u, y), bounds={"coulomb_friction.eps": (5e-3, 1.0)},
+                                max_nfev=max_nfev))
+    for fit in fits:
+        assert fit.parameters["coulomb_friction.eps"] == pytest.approx(5e-3, rel=1e-12)
+    for name, value in fits[1].parameters.items():
+        assert fits[0].parameters[name] == pytest.approx(value, rel=1e-5), name
+    assert fits[0].evaluations <= 6 + 1 + SETTLING + 2  # the limit, the probe on the bound, the settling, the estimate
