@@ -210,14 +210,10 @@ def _restarted(problem: TrustRegionProblem, x: np.ndarray, bounds: tuple, max_nf
     point, whose trust region starts afresh, went on to 4.65 %. Where the fit is at its optimum, the restart's
     first step gains less than ``ftol`` and it ends: one iteration more.
     """
-    def solve(start: np.ndarray, evaluations: int):
-        return least_squares(problem.residual, start, jac=lambda x: problem.evaluate(x)[1], bounds=bounds,
-                             method="trf", x_scale="jac", max_nfev=evaluations, ftol=ftol, xtol=1e-10, gtol=1e-10)
-
-    result = solve(x, max_nfev)
+    result = _trf(problem, x, bounds, max_nfev, ftol)
     left = max_nfev - result.nfev
     while result.status in _STALLED and left > 0:
-        again = solve(result.x, left)
+        again = _trf(problem, result.x, bounds, left, ftol)
         left -= again.nfev
         went_on = again.cost < (1.0 - ftol) * result.cost
         if again.cost <= result.cost:
@@ -225,6 +221,13 @@ def _restarted(problem: TrustRegionProblem, x: np.ndarray, bounds: tuple, max_nf
         if not went_on:
             break
     return _settled_on_bounds(problem, result, bounds, left, ftol)
+
+
+def _trf(problem: TrustRegionProblem, start: np.ndarray, bounds: tuple, evaluations: int, ftol: float):
+    """One run of scipy's ``least_squares`` (trf) on ``problem`` from ``start``, within ``bounds`` and
+    ``evaluations``."""
+    return least_squares(problem.residual, start, jac=lambda x: problem.evaluate(x)[1], bounds=bounds, method="trf",
+                         x_scale="jac", max_nfev=evaluations, ftol=ftol, xtol=1e-10, gtol=1e-10)
 
 
 #: Where holding the unknowns that press on their bounds exactly on them changes the cost by no more than this share
@@ -258,15 +261,13 @@ def _settled_on_bounds(problem: TrustRegionProblem, result, bounds: tuple, left:
     if not pressing.any():
         return result
     on = np.where(pressing_low, lower, np.where(pressing_high, upper, result.x))
-    problem = copy.deepcopy(problem)  # its solver, warm starts and counts stay the fit's own
-    if 0.5 * float(np.sum(problem.residual(on) ** 2)) > (1.0 + ON_BOUND) * result.cost:
+    trial = copy.deepcopy(problem)  # the fit's own solver, warm starts and counts stay as they are
+    if 0.5 * float(np.sum(trial.residual(on) ** 2)) > (1.0 + ON_BOUND) * result.cost:
         return result
     width = HELD_WIDTH * np.maximum(1.0, np.abs(on))
     held = (np.where(pressing_low, on, np.where(pressing_high, on - width, lower)),
             np.where(pressing_low, on + width, np.where(pressing_high, on, upper)))
-    settled = least_squares(problem.residual, np.clip(on, *held), jac=lambda x: problem.evaluate(x)[1], bounds=held,
-                            method="trf", x_scale="jac", max_nfev=max(left, SETTLING), ftol=ftol, xtol=1e-10,
-                            gtol=1e-10)
+    settled = _trf(trial, np.clip(on, *held), held, max(left, SETTLING), ftol)
     return settled if settled.cost <= (1.0 + ON_BOUND) * result.cost else result
 
 
