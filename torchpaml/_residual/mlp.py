@@ -20,10 +20,42 @@ from torchpaml._errors import ConfigurationError
 from torchpaml._physics.base import AbstractPhysics, SecondOrderPhysics, state_vector
 from torchpaml._residual.base import AbstractResidual
 
-__all__ = ["MLPResidual", "MLPForce", "ForceAugmented", "MLPRate", "RateAugmented", "mlp"]
+__all__ = ["MLPResidual", "MLPForce", "ForceAugmented", "MLPRate", "RateAugmented", "TanhNetwork", "mlp"]
 
 
-def mlp(inputs: int, hidden: int, depth: int, outputs: int = 1) -> nn.Sequential:
+class TanhNetwork(nn.Sequential):
+    r"""``nn.Linear`` layers and ``nn.Tanh`` activations in sequence, (..., in) -> (..., out), each activation
+    evaluated as a sigmoid whose factors are folded into the linear layers around it:
+
+    $$ \tanh(W h + b) = 2\sigma(2 W h + 2 b) - 1, \qquad W'(2 s - 1) + b' = 2 W' s + (b' - W' \mathbf{1}). $$
+
+    The same function as ``nn.Sequential`` of the same layers (within a few 1e-16 relative, float64; its modules and
+    ``state_dict`` are the same), at one elementwise operation per activation: on CPU, torch's float64 ``tanh``
+    takes about five times its ``sigmoid`` (3.3e6 elements on one thread: 20 ms against 4 ms), and a network
+    simulated along a record spends most of its time in its activations. A slice (``net[1:]``) is one too.
+    """
+
+    def forward(self, h: torch.Tensor) -> torch.Tensor:
+        layers, halved, i = list(self), False, 0  # halved: h holds s, the true activation being 2s - 1
+        while i < len(layers):
+            layer = layers[i]
+            if isinstance(layer, nn.Tanh):  # one that no linear layer precedes here
+                h, halved, i = torch.sigmoid(h + h), True, i + 1
+                continue
+            if not isinstance(layer, nn.Linear):
+                raise TypeError(f"TanhNetwork holds nn.Linear and nn.Tanh layers; got {type(layer).__name__}")
+            weight, bias = layer.weight, layer.bias
+            if halved:
+                weight, bias = weight + weight, bias - weight.sum(dim=1)
+            activated = i + 1 < len(layers) and isinstance(layers[i + 1], nn.Tanh)
+            if activated:
+                weight, bias = weight + weight, bias + bias
+            h = nn.functional.linear(h, weight, bias)
+            h, halved, i = (torch.sigmoid(h), True, i + 2) if activated else (h, False, i + 1)
+        return h * 2 - 1 if halved else h
+
+
+def mlp(inputs: int, hidden: int, depth: int, outputs: int = 1) -> TanhNetwork:
     """``depth`` hidden tanh layers of width ``hidden``, float64; the last layer starts at zero output."""
     layers, width = [], inputs
     for _ in range(depth):
@@ -32,7 +64,7 @@ def mlp(inputs: int, hidden: int, depth: int, outputs: int = 1) -> nn.Sequential
     last = nn.Linear(width, outputs, dtype=torch.float64)
     nn.init.zeros_(last.weight)
     nn.init.zeros_(last.bias)
-    return nn.Sequential(*layers, last)
+    return TanhNetwork(*layers, last)
 
 
 class MLPResidual(AbstractResidual):
