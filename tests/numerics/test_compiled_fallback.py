@@ -2,7 +2,7 @@
 simulates, with one CompiledPathWarning, and gives the same numbers (held to 1e-9 relative: the engine's RK4 and the
 compiled RK4 agree to rounding, the engine's Jacobian is a central difference of ~1e-7).
 
-The cases: no compiler, a cache folder that cannot be written (a file where the folder should be: the same refusal
+The cases: no compiler (also for the linear recurrence), a cache folder that cannot be written (a file where the folder should be: the same refusal
 for root, who may write anywhere), a library that does not load (built for another machine, or on a noexec mount), a
 compile that fails, a compile that hangs, a physics the tracer cannot take (no warning: the engine is its path).
 And two ways a compiled form could give stale or wrong numbers: a tensor attribute changed after a compile, and a
@@ -25,6 +25,8 @@ from torchpaml import (RK4, TRBDF2, AbstractPhysics, CompiledPathWarning, CubicS
 from torchpaml._data import Record
 from torchpaml._simulate import compiled
 from torchpaml._simulate import compiled_jacobian as jacobians
+from torchpaml._simulate import compiled_recurrence as recurrences
+from torchpaml._simulate.scan import constant_recurrence
 from torchpaml._simulate.sensitivity import raw_parameters
 from torchpaml._symbolic import compiler as compilers
 
@@ -227,3 +229,23 @@ def test_a_closed_form_with_a_function_c_has_no_name_for_is_a_compile_failure_no
     with pytest.raises(compilers.UnbuildableError, match=r"outputs: its closed form holds a function C has no name "
                                                           r"for .*: re\)"):
         compiled.c_function("outputs", "const double *x_", {"out_[0]": sympy.re(sympy.Symbol("z") * x)})
+
+
+def test_the_linear_recurrence_without_a_compiler_runs_the_scan(monkeypatch, tmp_path):
+    """Linear physics and the residual's filters step their states in C; without a compiler (and nothing cached) the
+    scan steps them instead, with one warning, to the same states within 1e-12."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    generator = torch.Generator().manual_seed(3)
+    A = torch.tensor([[0.6, 0.5], [-0.4, 0.7]], dtype=torch.float64)
+    b = torch.randn(2, 500, 2, generator=generator, dtype=torch.float64)
+    z0 = torch.randn(2, 2, generator=generator, dtype=torch.float64)
+    stepped = recurrences.sequential_recurrence(A, b, z0)
+    monkeypatch.setattr(compilers, "compiler", lambda: None)
+    recurrences._function.cache_clear()
+    try:
+        with pytest.warns(CompiledPathWarning, match="no C compiler"):
+            z = constant_recurrence(A, b, z0)
+        assert recurrences.sequential_recurrence(A, b, z0) is None
+    finally:
+        recurrences._function.cache_clear()
+    assert stepped is not None and torch.allclose(z, stepped, rtol=1e-12, atol=1e-12 * float(stepped.abs().max()))

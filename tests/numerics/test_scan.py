@@ -1,4 +1,5 @@
-"""The parallel scans of the linear recurrence against the sequential loop they replace.
+"""The linear recurrences against the sequential loop in torch: the parallel scans, and the constant recurrence's
+compiled loop (each constant-recurrence test runs on both paths: ``path``).
 
 Tolerance: the odd-even reduction multiplies the same matrices in another order, so it agrees with
 the loop to rounding, 1e-12 relative for contracting maps (spectral radius below 1) over 1000 steps,
@@ -9,8 +10,21 @@ import numpy as np
 import pytest
 import torch
 
+from torchpaml._simulate import scan
+from torchpaml._simulate.compiled_recurrence import sequential_recurrence
 from torchpaml._simulate.lti import discretize
 from torchpaml._simulate.scan import constant_recurrence, linear_recurrence
+
+
+@pytest.fixture(params=["compiled", "scan"])
+def path(request, monkeypatch):
+    """The constant recurrence's path: C's sequential loop (the default), or the scan it falls back to."""
+    if request.param == "scan":
+        monkeypatch.setattr(scan, "sequential_recurrence", lambda A, b, z0: None)
+    else:
+        assert sequential_recurrence(*(torch.zeros(s, dtype=torch.float64) for s in ((1, 1), (1, 1, 1), (1, 1)))) \
+            is not None, "this machine has no C compiler: the compiled path is not tested"
+    return request.param
 
 
 def _sequential(A, b, z0):
@@ -42,7 +56,7 @@ def test_scan_gradients_match_finite_differences():
 
 
 @pytest.mark.parametrize("K", [0, 1, 2, 3, 5, 8, 13, 64, 1000])
-def test_the_constant_scan_equals_the_sequential_recurrence(K):
+def test_the_constant_recurrence_equals_the_sequential_loop(K, path):
     _, b, z0 = _problem(K)
     A = torch.tensor([[0.6, 0.5], [-0.4, 0.7]], dtype=torch.float64)  # poles 0.65 +- 0.44j
     expected = _sequential(A.expand(3, K, 2, 2), b, z0)
@@ -51,7 +65,7 @@ def test_the_constant_scan_equals_the_sequential_recurrence(K):
     assert torch.allclose(z, expected, rtol=1e-12, atol=1e-12 * float(expected.abs().max()))
 
 
-def test_the_constant_scan_is_exact_with_every_pole_near_one():
+def test_the_constant_recurrence_is_exact_with_every_pole_near_one(path):
     """The Chebyshev residual's default filter (poles -1.5 +- 1j, -1.5 +- 6j, -1.5 1/s) sampled at h = 1 ms: every
     pole within 0.006 of z = 1. The states agree with the sequential loop to 1e-12 of each state's norm, and an input
     perturbed by 1e-12 moves them by no more than 1e-10 (a direct-form transfer function moved them by 2e-3)."""
@@ -74,7 +88,7 @@ def test_the_constant_scan_is_exact_with_every_pole_near_one():
     assert float(((moved - z).norm(dim=1) / z.norm(dim=1)).max()) < 1e-10
 
 
-def test_the_constant_scans_adjoint_and_tangent_match_finite_differences():
+def test_the_constant_recurrences_adjoint_and_tangent_match_finite_differences(path):
     """Reverse mode (the adjoint scan), forward mode (the tangent scan) and the second derivatives through the
     adjoint, against central differences."""
     A, b, z0 = _problem(11, n=3, batch=2, seed=1)
