@@ -18,6 +18,7 @@ from __future__ import annotations
 from torchpaml._errors import ConfigurationError
 
 import math
+import sys
 from dataclasses import dataclass
 from typing import Literal
 
@@ -48,8 +49,12 @@ class SelectionRule:
             raise ConfigurationError(f"min_share is a share of the validation mismatch, in [0, 1); got {self.min_share}")
 
     def value(self, sse: float, samples: int, parameters: int) -> float:
-        """The criterion of a fit with sum of squared errors ``sse`` on ``samples`` samples and ``parameters`` fitted."""
-        return samples * math.log(sse / samples) + self.penalty(samples, parameters)
+        """The criterion of a fit with sum of squared errors ``sse`` on ``samples`` samples and ``parameters`` fitted.
+
+        A fit that reproduces the records exactly (``sse`` 0: noise-free records of the same model, simulated along
+        the same arithmetic) counts the smallest positive float64 per sample in place of its error: the criterion
+        stays finite, and between two exact fits the penalty decides."""
+        return samples * math.log(max(sse / samples, sys.float_info.min)) + self.penalty(samples, parameters)
 
     def penalty(self, samples: int, parameters: int) -> float:
         """The criterion's charge for ``parameters`` unknowns on ``samples`` samples: $k \\ln n$ (BIC), $2k$ (AIC)."""
