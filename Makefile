@@ -55,10 +55,12 @@ tables: install
 
 bench: install-fleet
 	$(PYTHON) benchmarks/bench_simulation.py
+	$(PYTHON) benchmarks/bench_recurrence.py
 	$(PYTHON) benchmarks/bench_step_control.py
 	$(PYTHON) benchmarks/bench_reproduction.py
 	$(PYTHON) benchmarks/bench_ranking.py
 	$(PYTHON) benchmarks/bench_discovery.py
+	$(PYTHON) benchmarks/bench_network.py
 	$(PYTHON) benchmarks/bench_diagnosis.py
 	$(PYTHON) benchmarks/bench_fleet.py
 	$(PYTHON) benchmarks/bench_tracking.py

@@ -10,7 +10,7 @@ nineteen library effects, the default settings) four times:
 * **reference**: as the machine runs it (two threads, the compiled path);
 * **1 thread**: torch's and the BLAS pools held at one thread for the whole diagnosis;
 * **engine**: the compiled path switched off (as on a machine without a C compiler): every simulation and Jacobian
-  in the torch engine, whose Jacobian is a central difference;
+  in the torch engine, whose Jacobian is a central difference, and linear recurrences by the scan;
 * **perturbed**: the records' inputs and outputs multiplied by ``1 + 1e-12 s`` (s a random sign per sample), the
   rounding of another machine's CSV writer or sensor chain.
 
@@ -42,7 +42,7 @@ from torchpaml import (CompiledPathWarning, CoulombFriction, CubicStiffness, Osc
                        Simulated, default_effects, diagnose)
 from torchpaml._fit.one_thread import one_thread
 from torchpaml.leaderboard import benchmark
-from torchpaml._simulate import compiled
+from torchpaml._simulate import compiled, scan
 
 CASES = {"demo": CoulombFriction(0.5), "cubic_stiffness": CubicStiffness(3.0), "quadratic_damping": QuadraticDamping(0.8)}
 #: The measured benchmarks, diagnosed by their experiments' own ``diagnosed`` (as ``make leaderboard`` does).
@@ -103,14 +103,16 @@ def perturbed(record: Record, seed: int) -> Record:
 
 @contextlib.contextmanager
 def engine_only():
-    saved = compiled.compiler, compiled._FORMS, compiled._WARNED
+    """As on a machine without a C compiler: the torch engine for RK4 and TR-BDF2, the scan for linear recurrences."""
+    saved = compiled.compiler, compiled._FORMS, compiled._WARNED, scan.sequential_recurrence
     compiled.compiler, compiled._FORMS, compiled._WARNED = (lambda: None), compiled.OrderedDict(), set()
+    scan.sequential_recurrence = lambda A, b, z0: None
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", CompiledPathWarning)
             yield
     finally:
-        compiled.compiler, compiled._FORMS, compiled._WARNED = saved
+        compiled.compiler, compiled._FORMS, compiled._WARNED, scan.sequential_recurrence = saved
 
 
 def answer(case: str, train: list[Record], validation: list[Record]) -> dict:
