@@ -56,10 +56,10 @@ def constant_recurrence(A: torch.Tensor, b: torch.Tensor, z0: torch.Tensor) -> t
     recursion to about $10^{-13}$, where a transfer function's direct form, whose $n$-fold cluster of roots
     amplifies every rounding by about $\delta^{-n}$, loses most of its digits.
 
-    Derivatives by the adjoint recursion, itself one scan: with $\lambda_K = g_K$ and
+    Derivatives by the adjoint recursion, itself one recurrence: with $\lambda_K = g_K$ and
     $\lambda_s = g_s + A^\top \lambda_{s+1}$ for the cotangents $g_s$ of $z_s$, the gradients are
     $\partial L/\partial b_s = \lambda_{s+1}$, $\partial L/\partial z_0 = \lambda_0$ and
-    $\partial L/\partial A = \sum_s \lambda_{s+1} z_s^\top$; forward mode is the scan of
+    $\partial L/\partial A = \sum_s \lambda_{s+1} z_s^\top$; forward mode is the recurrence of
     $\dot z_{s+1} = A \dot z_s + \dot A z_s + \dot b_s$. Both cost one recurrence, where reverse mode through the
     scan's levels costs several.
 
