@@ -35,6 +35,14 @@ def test_the_folded_network_is_the_tanh_network(depth):
         assert _close(net(z), plain(z))
 
 
+def test_layers_without_a_bias_fold_too():
+    torch.manual_seed(1)
+    layers = [nn.Linear(3, 8, bias=False, dtype=torch.float64), nn.Tanh(), nn.Linear(8, 2, bias=False, dtype=torch.float64)]
+    z = torch.randn(50, 3, dtype=torch.float64)
+    with torch.no_grad():
+        assert _close(TanhNetwork(*layers)(z), nn.Sequential(*layers)(z))
+
+
 def test_a_slice_that_starts_at_an_activation_is_the_plain_slice():
     """MLPResidual applies its first layer as a convolution and the rest as ``net[1:]``."""
     net = _network()

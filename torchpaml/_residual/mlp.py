@@ -44,7 +44,8 @@ class TanhNetwork(nn.Sequential):
                 continue
             if not isinstance(layer, nn.Linear):
                 raise TypeError(f"TanhNetwork holds nn.Linear and nn.Tanh layers; got {type(layer).__name__}")
-            weight, bias = layer.weight, layer.bias
+            weight = layer.weight
+            bias = layer.bias if layer.bias is not None else weight.new_zeros(weight.shape[0])
             if halved:
                 weight, bias = weight + weight, bias - weight.sum(dim=1)
             activated = i + 1 < len(layers) and isinstance(layers[i + 1], nn.Tanh)
