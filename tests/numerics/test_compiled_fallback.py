@@ -241,11 +241,11 @@ def test_the_linear_recurrence_without_a_compiler_runs_the_scan(monkeypatch, tmp
     z0 = torch.randn(2, 2, generator=generator, dtype=torch.float64)
     stepped = recurrences.sequential_recurrence(A, b, z0)
     monkeypatch.setattr(compilers, "compiler", lambda: None)
-    recurrences._function.cache_clear()
+    recurrences._library.cache_clear()
     try:
         with pytest.warns(CompiledPathWarning, match="no C compiler"):
             z = constant_recurrence(A, b, z0)
         assert recurrences.sequential_recurrence(A, b, z0) is None
     finally:
-        recurrences._function.cache_clear()
+        recurrences._library.cache_clear()
     assert stepped is not None and torch.allclose(z, stepped, rtol=1e-12, atol=1e-12 * float(stepped.abs().max()))

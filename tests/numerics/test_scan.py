@@ -12,7 +12,7 @@ import torch
 
 from torchpaml._simulate import scan
 from torchpaml._simulate.compiled_recurrence import sequential_recurrence
-from torchpaml._simulate.lti import discretize
+from torchpaml._simulate.lti import discrete_states, discretize
 from torchpaml._simulate.scan import constant_recurrence, linear_recurrence
 
 
@@ -95,3 +95,25 @@ def test_the_constant_recurrences_adjoint_and_tangent_match_finite_differences(p
     inputs = (A[0, 0].clone().requires_grad_(), b.requires_grad_(), z0.requires_grad_())
     assert torch.autograd.gradcheck(constant_recurrence, inputs, check_forward_ad=True)
     assert torch.autograd.gradgradcheck(constant_recurrence, inputs)
+
+
+@pytest.mark.parametrize("inputs", [1, 2])
+def test_the_forced_loop_is_the_recurrence_on_its_drives(inputs):
+    """``discrete_states`` without a derivative recorded forms each drive inside C's loop; with one input its states
+    are those of the recurrence on the drives ``u @ G0.T + u @ G1.T`` to the last bit, with two within 1e-14 (the
+    products' sums in another order); with a derivative recorded it takes the drives and the recurrence."""
+    poles = torch.tensor([[0.0, 1.0], [-4.0, -0.8]], dtype=torch.float64)
+    g = torch.Generator().manual_seed(5)
+    B = torch.randn(2, inputs, generator=g, dtype=torch.float64)
+    Phi, G0, G1 = discretize(poles, B, 0.05)
+    u = torch.randn(3, 4000, inputs, generator=g, dtype=torch.float64)
+    x0 = torch.randn(3, 2, generator=g, dtype=torch.float64)
+    with torch.no_grad():
+        forced = discrete_states(Phi, G0, G1, u, x0)
+        on_drives = constant_recurrence(Phi, (u @ G0.T)[:, :-1] + (u @ G1.T)[:, 1:], x0)
+    recorded = discrete_states(Phi.clone().requires_grad_(), G0, G1, u, x0)
+    assert recorded.requires_grad and torch.equal(recorded.detach(), on_drives)
+    if inputs == 1:
+        assert torch.equal(forced, on_drives)
+    else:
+        assert float((forced - on_drives).abs().max()) <= 1e-14 * float(on_drives.abs().max())

@@ -8,9 +8,9 @@ $$ x_{k+1} = \Phi x_k + \Gamma_0 u_k + \Gamma_1 u_{k+1}, \qquad
    = \begin{pmatrix} \Phi & \Gamma_a & \Gamma_b \\ 0 & I & I \\ 0 & 0 & I \end{pmatrix}, $$
 
 with $\Gamma_1 = \Gamma_b$, $\Gamma_0 = \Gamma_a - \Gamma_b$, from $x_0$. The recursion runs on the states
-themselves, by a parallel scan with one matrix for every step
-(:func:`~torchpaml._simulate.scan.constant_recurrence`): its roundings stay those of a few matrix products, however
-close the poles sit to $z = 1$. A transfer function's direct form would not: at a fine sampling interval its
+themselves, stepped in C (:mod:`~torchpaml._simulate.compiled_recurrence`; the parallel scan of
+:func:`~torchpaml._simulate.scan.constant_recurrence` where the machine cannot compile): its roundings stay those of
+a few products per step, however close the poles sit to $z = 1$. A transfer function's direct form would not: at a fine sampling interval its
 $n$ poles cluster within $|\lambda| h$ of $z = 1$ and its recursion amplifies each rounding by about
 $(|\lambda| h)^{-n}$ (the Chebyshev residual's fifth-order filter at $h = 1$ ms: inputs perturbed by $10^{-12}$
 moved its states by $2 \cdot 10^{-3}$).
@@ -27,6 +27,7 @@ import torch
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._errors import DataError
 from torchpaml._grid import check_hold, uniform_step
+from torchpaml._simulate.compiled_recurrence import sequential_forced
 from torchpaml._simulate.scan import constant_recurrence
 
 __all__ = ["discrete_response", "discrete_states", "discretize", "exact_step", "foh_exponent", "simulate_lti",
@@ -113,9 +114,16 @@ def discrete_response(
 
 def discrete_states(Phi: torch.Tensor, G0: torch.Tensor, G1: torch.Tensor, u: torch.Tensor,
                     x0: torch.Tensor | None = None) -> torch.Tensor:
-    """The states of :func:`discrete_response`, (batch, time, n), by the parallel scan (module docstring)."""
+    """The states of :func:`discrete_response`, (batch, time, n) (module docstring): where no derivative is recorded,
+    one loop in C that forms each drive as it steps
+    (:func:`~torchpaml._simulate.compiled_recurrence.sequential_forced`); else the drives
+    $\Gamma_0 u_k + \Gamma_1 u_{k+1}$, then :func:`~torchpaml._simulate.scan.constant_recurrence` on them."""
     if x0 is None:
         x0 = torch.zeros(u.shape[0], Phi.shape[0], dtype=Phi.dtype, device=Phi.device)
+    recorded = torch.is_grad_enabled() and any(x.requires_grad for x in (Phi, G0, G1, u, x0))
+    states = None if recorded else sequential_forced(Phi, G0, G1, u, x0)
+    if states is not None:
+        return states
     drive = (u @ G0.T)[:, :-1] + (u @ G1.T)[:, 1:]  # (batch, time - 1, n)
     return constant_recurrence(Phi, drive, x0)
 
