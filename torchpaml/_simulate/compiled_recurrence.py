@@ -7,9 +7,9 @@ reorganises, at about a tenth of its cost on one core (its $n^2$ products per st
 levels and copies): 0.6 ms against 5.4 ms for six rows of 10 000 steps of a fifth-order filter.
 
 The library is built once per machine (:func:`~torchpaml._symbolic.compiler.cached_library`). Where it cannot be built
-or loaded, where a ``torch.func`` transform is running, or for tensors that are not float64 on the CPU,
-:func:`sequential_recurrence` gives ``None`` and the scan runs instead (one
-:class:`~torchpaml.CompiledPathWarning` per process says why).
+or loaded (one :class:`~torchpaml.CompiledPathWarning` per process says why), where a ``torch.func`` transform or
+``torch.compile`` is running, or for tensors that are not float64 on the CPU, :func:`sequential_recurrence` and
+:func:`sequential_forced` give ``None`` and torch runs instead (the scan).
 """
 
 from __future__ import annotations
