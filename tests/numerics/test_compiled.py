@@ -125,14 +125,18 @@ def test_two_physics_that_differ_only_in_a_function_they_hold_get_two_forms():
 
 
 def test_the_gradient_through_the_compiled_start_is_exact(monkeypatch):
+    """An input that requires a gradient leaves the graph to the shooting engine (the compiled gradient carries the
+    parameters and the initial state), whose Newton starts from the compiled states."""
     monkeypatch.setattr(compiled, "MIN_STEPS", 1000)
     physics = _hard()
     t, u = _drive(1000)
+    u.requires_grad_()
 
     def gradient(segment):
         physics.zero_grad()
+        u.grad = None
         simulate(physics, t, u, solver=RK4(substeps=2, segment=segment)).square().sum().backward()
-        return torch.cat([p.grad.reshape(-1) for p in physics.parameters() if p.grad is not None])
+        return torch.cat([u.grad.reshape(-1), *[p.grad.reshape(-1) for p in physics.parameters() if p.grad is not None]])
 
     shooting = gradient(2)
     assert _form(physics) is not None

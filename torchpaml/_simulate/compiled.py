@@ -17,8 +17,9 @@ that are not parameters), shared by every physics object of that structure: chan
 again.
 
 **Where it is used.** :func:`~torchpaml._simulate.shooting.simulate_shooting` returns these states where no
-gradient is recorded, and otherwise starts Newton from them: they are the solution, so its first sweep converges
-and gives the sensitivities that gradients need. Where the physics cannot be compiled, :func:`sequential_states`
+derivative is recorded; where one is, the same C with the states' sensitivities
+(:mod:`~torchpaml._simulate.compiled_gradient`), or, where that cannot carry them, Newton in the engine started from
+these states: they are the solution, so its first sweep converges and gives the sensitivities that gradients need. Where the physics cannot be compiled, :func:`sequential_states`
 returns ``None`` and the engine goes on as before: a method other than RK4 (its ``sweep`` is the method), a physics
 that the operation table cannot take (:mod:`~torchpaml._symbolic.trace`), a structure run by ``functional_call``
 (plain tensors in the parameters' place: the engine's differences), more than :data:`MAX_PARAMETERS` parameter elements (a
@@ -47,7 +48,7 @@ from torchpaml._simulate.method import Method
 from torchpaml._symbolic.compiler import UnbuildableError, cached_library, compiler, loaded
 from torchpaml._symbolic.trace import symbolic_maps
 
-__all__ = ["MAX_PARAMETERS", "MIN_STEPS", "compiled_form", "sequential_states", "warn_once"]
+__all__ = ["MAX_PARAMETERS", "MIN_STEPS", "compiled_form", "sequential_states", "transformed", "warn_once"]
 
 log = logging.getLogger(__name__)
 
@@ -256,7 +257,7 @@ def warn_once(reason: str) -> None:
                       "slower, with the same results", CompiledPathWarning, stacklevel=3)
 
 
-def _transformed() -> bool:
+def transformed() -> bool:
     """Whether a ``torch.func`` transform (``jvp``, ``vmap``, ``grad``) is running: its tensors cannot leave torch."""
     return torch._C._functorch.peek_interpreter_stack() is not None
 
@@ -265,7 +266,7 @@ def compiled_form(physics: Dynamics, solver: Method, steps: int | None = None) -
     """The compiled form of ``physics`` for ``solver``; ``None`` where the module docstring's conditions leave it to
     the shooting engine, among them ``steps`` (rows x samples x substeps, where given) below :data:`MIN_STEPS`: the
     path depends on the record alone, never on what this process compiled before."""
-    if not solver.compiles or _transformed():
+    if not solver.compiles or transformed():
         return None
     if solver.compiles != "rk4":  # the forward library is RK4's; TR-BDF2 runs in the sensitivities' one
         steps = None

@@ -63,18 +63,24 @@ static void stage(double t_, const double *z, const double *uz, const double *p_
         }
 }
 
-/* The outputs at a sample, their Jacobian, and the states where asked (states != NULL). */
-static void emit(const double *x, const double *un, const double *p_, int columns, const int *column, const double *S,
-                 double *y, double *J, double *states, double *hx, double *hp) {
-    outputs(x, un, p_, y, hx, hp);
-    for (int o = 0; o < N_OUTPUTS; o++)
-        for (int j = 0; j < columns; j++) {
-            double s = column[j] >= 0 ? hp[o * N_PARAMS + column[j]] : 0.0;
-            for (int l = 0; l < N_STATES; l++) s += hx[o * N_STATES + l] * S[j * N_STATES + l];
-            J[o * columns + j] = s;
-        }
+/* What is asked at sample `at` (an array that is NULL is not asked): the outputs and their Jacobian, the states, and
+   the states' sensitivities S (columns x N_STATES). */
+static void emit(long at, const double *x, const double *un, const double *p_, int columns, const int *column,
+                 const double *S, double *y, double *J, double *states, double *sens, double *hx, double *hp) {
+    if (y != NULL) {
+        double *yn = y + at * N_OUTPUTS, *Jn = J + at * N_OUTPUTS * columns;
+        outputs(x, un, p_, yn, hx, hp);
+        for (int o = 0; o < N_OUTPUTS; o++)
+            for (int j = 0; j < columns; j++) {
+                double s = column[j] >= 0 ? hp[o * N_PARAMS + column[j]] : 0.0;
+                for (int l = 0; l < N_STATES; l++) s += hx[o * N_STATES + l] * S[j * N_STATES + l];
+                Jn[o * columns + j] = s;
+            }
+    }
     if (states != NULL)
-        for (int i = 0; i < N_STATES; i++) states[i] = x[i];
+        for (int i = 0; i < N_STATES; i++) states[at * N_STATES + i] = x[i];
+    if (sens != NULL)
+        for (int i = 0; i < columns * N_STATES; i++) sens[at * columns * N_STATES + i] = S[i];
 }
 
 typedef struct {
@@ -107,7 +113,8 @@ static void stage_inputs(const double *u0, const double *u1, int foh, double fa,
 }
 
 int rk4_rows(int rows, int samples, int substeps, int foh, int columns, const int *column, const double *t,
-             const double *u, const double *x0, const double *p_, double *states, double *y, double *J) {
+             const double *u, const double *x0, const double *p_, double *states, double *y, double *J,
+             double *sens) {
     Work w;
     double *all = work(&w, columns);
     if (all == NULL) return -1;
@@ -118,8 +125,7 @@ int rk4_rows(int rows, int samples, int substeps, int foh, int columns, const in
     for (int r = 0; r < rows; r++) {
         const long first = (long)r * samples;
         start_row(x0 + r * N_STATES, columns, column, x, S);
-        emit(x, u + first * N_INPUTS, p_, columns, column, S, y + first * N_OUTPUTS, J + first * N_OUTPUTS * columns,
-             states == NULL ? NULL : states + first * N_STATES, w.hx, w.hp);
+        emit(first, x, u + first * N_INPUTS, p_, columns, column, S, y, J, states, sens, w.hx, w.hp);
         for (int n = 0; n + 1 < samples; n++) {
             const double h = t[n + 1] - t[n], d = h / substeps, half = d * 0.5, sixth = d * (1.0 / 6.0);
             const double *u0 = u + (first + n) * N_INPUTS, *u1 = u0 + N_INPUTS;
@@ -144,8 +150,7 @@ int rk4_rows(int rows, int samples, int substeps, int foh, int columns, const in
                 for (int i = 0; i < v; i++) S[i] = S[i] + sixth * ((K1[i] + K4[i]) + 2.0 * (K2[i] + K3[i]));
             }
             const long at = first + n + 1;
-            emit(x, u1, p_, columns, column, S, y + at * N_OUTPUTS, J + at * N_OUTPUTS * columns,
-                 states == NULL ? NULL : states + at * N_STATES, w.hx, w.hp);
+            emit(at, x, u1, p_, columns, column, S, y, J, states, sens, w.hx, w.hp);
         }
     }
     free(all);
@@ -254,7 +259,8 @@ static int implicit_sensitivities(double tz, const double *z, const double *uz, 
 }
 
 int trbdf2_rows(int rows, int samples, int substeps, int foh, int columns, const int *column, const double *t,
-                const double *u, const double *x0, const double *p_, double *states, double *y, double *J) {
+                const double *u, const double *x0, const double *p_, double *states, double *y, double *J,
+                double *sens) {
     Work w;
     double *all = work(&w, columns);
     if (all == NULL) return -1;
@@ -266,8 +272,7 @@ int trbdf2_rows(int rows, int samples, int substeps, int foh, int columns, const
         const long first = (long)r * samples;
         start_row(x0 + r * N_STATES, columns, column, x, S);
         for (int i = 0; i < N_STATES; i++) scale[i] = fabs(x[i]) > 1.0 ? fabs(x[i]) : 1.0;
-        emit(x, u + first * N_INPUTS, p_, columns, column, S, y + first * N_OUTPUTS, J + first * N_OUTPUTS * columns,
-             states == NULL ? NULL : states + first * N_STATES, w.hx, w.hp);
+        emit(first, x, u + first * N_INPUTS, p_, columns, column, S, y, J, states, sens, w.hx, w.hp);
         for (int n = 0; n + 1 < samples; n++) {
             const double h = t[n + 1] - t[n], dh = (h / substeps) * D_COEFFICIENT;
             const double *u0 = u + (first + n) * N_INPUTS, *u1 = u0 + N_INPUTS;
@@ -294,8 +299,7 @@ int trbdf2_rows(int rows, int samples, int substeps, int foh, int columns, const
                 }
             }
             const long at = first + n + 1;
-            emit(x, u1, p_, columns, column, S, y + at * N_OUTPUTS, J + at * N_OUTPUTS * columns,
-                 states == NULL ? NULL : states + at * N_STATES, w.hx, w.hp);
+            emit(at, x, u1, p_, columns, column, S, y, J, states, sens, w.hx, w.hp);
         }
     }
     free(all);
@@ -371,7 +375,7 @@ class _Sensitivities:
         self._runs = {name: getattr(library, f"{name}_rows") for name in ("rk4", "trbdf2")}
         for run in self._runs.values():
             run.restype = ctypes.c_int
-            run.argtypes = [ctypes.c_int] * 5 + [ctypes.c_void_p] * 8
+            run.argtypes = [ctypes.c_int] * 5 + [ctypes.c_void_p] * 9
 
     def __call__(self, method: str, parameters: np.ndarray, columns: list[int], t: torch.Tensor, u: torch.Tensor,
                  x0: torch.Tensor, outputs: int, substeps: int, hold: str,
@@ -380,21 +384,39 @@ class _Sensitivities:
         the states (batch, time, n_state) by ``method`` (``"rk4"``, ``"trbdf2"``). Raises
         :class:`~torchpaml.SimulationError` where a TR-BDF2 stage's Newton does not converge, naming the time."""
         batch, samples, _ = u.shape
-        arrays = [np.ascontiguousarray(a.detach().to(torch.float64).numpy()) for a in (t, u, x0)]
-        column = np.array(columns, dtype=np.intc)
         y = np.empty((batch, samples, outputs))
         J = np.empty((batch, samples, outputs, len(columns)))
         x = np.empty((batch, samples, x0.shape[-1])) if states else None
+        self._run(method, parameters, columns, t, u, x0, substeps, hold, x, y, J, None)
+        return torch.from_numpy(y), torch.from_numpy(J), None if x is None else torch.from_numpy(x)
+
+    def sensitive_states(self, method: str, parameters: np.ndarray, columns: list[int], t: torch.Tensor,
+                         u: torch.Tensor, x0: torch.Tensor, substeps: int, hold: str
+                         ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The states (batch, time, n_state) and their sensitivities (batch, time, columns, n_state) to each column
+        (module docstring's $S$), by ``method``; raises as :meth:`__call__` does."""
+        batch, samples, n = *u.shape[:2], x0.shape[-1]
+        x = np.empty((batch, samples, n))
+        S = np.empty((batch, samples, len(columns), n))
+        self._run(method, parameters, columns, t, u, x0, substeps, hold, x, None, None, S)
+        return torch.from_numpy(x), torch.from_numpy(S)
+
+    def _run(self, method: str, parameters: np.ndarray, columns: list[int], t: torch.Tensor, u: torch.Tensor,
+             x0: torch.Tensor, substeps: int, hold: str, *written: np.ndarray | None) -> None:
+        """``method``'s rows in C, writing the arrays ``written`` (states, outputs, Jacobian, sensitivities; ``None``:
+        not asked)."""
+        batch, samples, _ = u.shape
+        arrays = [np.ascontiguousarray(a.detach().to(torch.float64).numpy()) for a in (t, u, x0)]
+        column = np.array(columns, dtype=np.intc)
         code = self._runs[method](batch, samples, substeps, int(hold == "foh"), len(columns), column.ctypes.data,
                                   *[a.ctypes.data for a in arrays], parameters.ctypes.data,
-                                  None if x is None else x.ctypes.data, y.ctypes.data, J.ctypes.data)
+                                  *[None if a is None else a.ctypes.data for a in written])
         if code < 0:
             raise MemoryError("the compiled Jacobian could not allocate its sensitivities")
         if code > 0:
             at = float(t[(code - 1) % samples])
             raise SimulationError(f"TR-BDF2's Newton did not converge in the step from t = {at:.4g} s: the physics is "
                                   f"not smooth enough there, or blows up")
-        return torch.from_numpy(y), torch.from_numpy(J), None if x is None else torch.from_numpy(x)
 
 
 def _columns(form: _Compiled, raw: dict[str, torch.Tensor], n: int, initial_state: bool) -> list[int] | None:

@@ -19,7 +19,7 @@ import functools
 
 import torch
 
-from torchpaml._simulate.compiled import _transformed, warn_once
+from torchpaml._simulate.compiled import transformed, warn_once
 from torchpaml._symbolic.compiler import UnbuildableError, cached_library, loaded
 
 __all__ = ["sequential_forced", "sequential_recurrence"]
@@ -83,7 +83,7 @@ def _library():
 
 def _usable(*tensors: torch.Tensor):
     """The library where these tensors may leave torch for it (module docstring), else ``None``."""
-    if _transformed() or torch.compiler.is_compiling():
+    if transformed() or torch.compiler.is_compiling():
         return None
     if any(x.dtype != torch.float64 or x.device.type != "cpu" for x in tensors):
         return None

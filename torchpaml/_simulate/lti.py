@@ -114,7 +114,7 @@ def discrete_response(
 
 def discrete_states(Phi: torch.Tensor, G0: torch.Tensor, G1: torch.Tensor, u: torch.Tensor,
                     x0: torch.Tensor | None = None) -> torch.Tensor:
-    """The states of :func:`discrete_response`, (batch, time, n) (module docstring): where no derivative is recorded,
+    r"""The states of :func:`discrete_response`, (batch, time, n) (module docstring): where no derivative is recorded,
     one loop in C that forms each drive as it steps
     (:func:`~torchpaml._simulate.compiled_recurrence.sequential_forced`); else the drives
     $\Gamma_0 u_k + \Gamma_1 u_{k+1}$, then :func:`~torchpaml._simulate.scan.constant_recurrence` on them."""

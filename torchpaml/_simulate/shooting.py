@@ -50,6 +50,7 @@ import math
 import torch
 from torch.nn.utils import parametrize
 
+from torchpaml._simulate.compiled_gradient import compiled_gradient_states, constants
 from torchpaml._simulate.compiled_jacobian import compiled_states
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.method import Method
@@ -58,6 +59,7 @@ from torchpaml._budget import checkpoint
 from torchpaml._grid import check_hold
 from torchpaml._simulate.lti import exact_step, simulate_lti_states
 from torchpaml._simulate.scan import linear_recurrence
+from torchpaml._simulate.second_order import one_segment, with_second_order
 from torchpaml._simulate.warm import WarmStart
 
 
@@ -425,18 +427,21 @@ def simulate_shooting(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: t
 
     Returns:
         states: (batch, time, n_state), differentiable in the parameters, ``u`` and ``x0`` (reverse and
-        forward mode) when grad mode is on.
+        forward mode) when grad mode is on: by the compiled sensitivities where the physics compiles
+        (:mod:`~torchpaml._simulate.compiled_gradient`), else by this engine; a differentiated backward
+        (``create_graph=True``) by reverse mode through every step (:mod:`~torchpaml._simulate.second_order`).
     """
     if len(t) < 2:
         return x0[:, None]
     if warm is not None and not isinstance(warm, WarmStart):
         raise ConfigurationError(f"warm must be a torchpaml.WarmStart kept per record (warm=tp.WarmStart()), got "
                                  f"{type(warm).__name__}")
-    if not torch.is_grad_enabled():
-        states = compiled_states(physics, t, u, x0, solver, options.get("hold", "foh"))
-        if states is not None:
-            if warm is not None:
-                warm.states = states
-            return states
-    solution = solve_shooting(physics, t, u, x0, solver, sensitivities=torch.is_grad_enabled(), warm=warm, **options)
-    return solution.states(physics, x0)
+    hold = options.get("hold", "foh")
+    states = compiled_gradient_states(physics, t, u, x0, solver, hold)
+    if states is None:
+        solution = solve_shooting(physics, t, u, x0, solver, sensitivities=torch.is_grad_enabled(), warm=warm, **options)
+        states = solution.states(physics, x0)
+    elif warm is not None:
+        warm.states = states.detach()
+    inputs = [v for v in (t, u, x0, *physics.parameters(), *constants(physics)) if v.requires_grad]
+    return with_second_order(states, lambda: one_segment(physics, _Layout(t, u, solver, len(t), hold), x0), inputs)
