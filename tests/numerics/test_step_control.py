@@ -15,7 +15,7 @@ from torchpaml import RK4, Auto
 from torchpaml import (AbstractPhysics, CubicStiffness, Oscillator, PhysicalParameter, Positive, ResolutionError,
                        register_parameters, simulate, state_vector)
 from torchpaml._signals import multisine
-from torchpaml._simulate.step_control import next_substeps, output_gap
+from torchpaml._simulate.step_control import next_substeps, output_gap, simulate_to_tolerance
 
 from oracles import oracle
 
@@ -128,3 +128,25 @@ def test_step_doubling_arithmetic():
     assert next_substeps(1, 1e-3, 1e-3) == 2  # at least doubles
     assert next_substeps(2, 16 * 5e-4, 1e-3) == 4  # fourth order: a gap 16x half the target needs twice the substeps
     assert next_substeps(2, 256 * 5e-4, 1e-3) == 8
+
+
+@pytest.mark.parametrize("first_gap_passes", [False, True])
+def test_with_a_gradient_the_accepted_step_is_simulated_once_with_it(first_gap_passes):
+    """Step doubling under grad mode: a fine run that the order predicts to pass (after a first gap) is recorded as it
+    runs; a first fine run that passes is simulated once more with the gradient. No step is simulated twice but
+    that one, and the output returned carries the gradient."""
+    theta = torch.tensor(1.0, dtype=torch.float64, requires_grad=True)
+    error = 1e-4 if first_gap_passes else 0.5  # the output at m substeps: theta (1 + error / m^4)
+    calls = []
+
+    def run(m):
+        calls.append((m, torch.is_grad_enabled()))
+        return (theta * (1 + error / m**4)).reshape(1)
+
+    y, m = simulate_to_tolerance(run, 1, 1e-3, 0.1)
+    assert y.requires_grad
+    if first_gap_passes:
+        assert calls == [(1, False), (2, False), (2, True)] and m == 2
+    else:
+        assert [c for c, _ in calls] == sorted({c for c, _ in calls})  # each step once
+        assert calls[-1][1] and not any(grad for _, grad in calls[:-1]) and m == calls[-1][0]

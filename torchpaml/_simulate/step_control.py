@@ -54,8 +54,9 @@ def simulate_to_tolerance(run: Callable[[int], torch.Tensor], start: int, rtol: 
     r"""``run(2m)`` for the first $m$ (from ``start``, by :func:`next_substeps`) whose gap $g_m$ is at most ``rtol``,
     and that $2m$.
 
-    ``run(m)`` returns the output at ``m`` substeps; the checks run without gradients, and the accepted output is
-    simulated once more with them when grad mode is on. A first simulation that blows up
+    ``run(m)`` returns the output at ``m`` substeps. The checks run without gradients; where grad mode is on, the
+    accepted output is recorded with them: a fine run that the method's order predicts to pass (every one after the
+    first gap) is recorded as it runs, and a first fine run that passes is simulated once more. A first simulation that blows up
     (:class:`~torchpaml.SimulationError`: a rate too fast for the step) is tried again at twice the substeps.
     ``order`` is the method's order (:func:`next_substeps`); ``step`` (the sample interval, s) and ``method`` (its
     name) go into the :class:`~torchpaml.ResolutionError` raised when $2m$ would pass :data:`MAX_SUBSTEPS`.
@@ -63,6 +64,7 @@ def simulate_to_tolerance(run: Callable[[int], torch.Tensor], start: int, rtol: 
     if not rtol > 0:
         raise ConfigurationError(f"rtol must be positive, got {rtol}")
     m = min(start, MAX_SUBSTEPS // 2)
+    recorded, predicted = torch.is_grad_enabled(), False
     with torch.no_grad():
         coarse = None
         while coarse is None:
@@ -73,8 +75,9 @@ def simulate_to_tolerance(run: Callable[[int], torch.Tensor], start: int, rtol: 
                     raise
                 m *= 2
         while True:
-            fine = run(2 * m)
-            gap = output_gap(coarse, fine)
+            with torch.set_grad_enabled(recorded and predicted):
+                fine = run(2 * m)
+            gap = output_gap(coarse, fine.detach())
             if gap <= rtol:
                 break
             following = next_substeps(m, gap, rtol, order)
@@ -85,5 +88,6 @@ def simulate_to_tolerance(run: Callable[[int], torch.Tensor], start: int, rtol: 
                     f"the model is much faster than the sampling (h = {step:g} s), or its physics has a sharp "
                     f"corner. Loosen rtol, fix the step with {method}(substeps=N), integrate stiff physics with "
                     "TRBDF2(), or use Dopri5()")
-            coarse, m = (fine, 2 * m) if following == 2 * m else (run(following), following)
-    return (run(2 * m) if torch.is_grad_enabled() else fine), 2 * m
+            coarse, m = (fine.detach(), 2 * m) if following == 2 * m else (run(following), following)
+            predicted = True  # the next fine run is the one the order predicts to pass: recorded at once
+    return (run(2 * m) if recorded and not fine.requires_grad else fine), 2 * m
