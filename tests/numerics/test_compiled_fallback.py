@@ -118,7 +118,7 @@ from torchpaml import CubicStiffness, Oscillator
 from torchpaml._simulate import compiled
 from torchpaml._symbolic.compiler import cached_library
 form = compiled._Compiled(Oscillator(zeta=0.1, omega0=1.0, gain=1.0, learn=("zeta", "omega0")) + CubicStiffness(200.0))
-print(cached_library(compiled._source(form.rates, 2, 1), "simulate", "the test"))
+print(cached_library(compiled._source(form, 2, 1), "simulate", "the test"))
 """
 
 

@@ -38,6 +38,7 @@ from collections import OrderedDict
 import numpy as np
 import sympy
 import torch
+from sympy.codegen.rewriting import create_expand_pow_optimization
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.codeprinter import PrintMethodNotImplementedError
 from torch import nn
@@ -46,6 +47,7 @@ from torchpaml._errors import CompiledPathWarning, ConfigurationError
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.method import Method
 from torchpaml._symbolic.compiler import UnbuildableError, cached_library, compiler, loaded
+from torchpaml._symbolic.hoist import extension, hoisted, slot
 from torchpaml._symbolic.trace import symbolic_maps
 
 __all__ = ["MAX_PARAMETERS", "MIN_STEPS", "compiled_form", "sequential_states", "transformed", "warn_once"]
@@ -61,7 +63,9 @@ MAX_PARAMETERS = 256
 
 _LOOP = r"""
 int simulate_rows(int rows, int samples, int substeps, int foh, const double *t, const double *u, const double *x0,
-                  const double *p_, double *states) {
+                  const double *given_, double *states) {
+    double p_[N_EXTENDED];
+    extend(given_, p_);
     double x[N_STATES], z[N_STATES], k1[N_STATES], k2[N_STATES], k3[N_STATES], k4[N_STATES];
     double ua[N_INPUTS + 1], um[N_INPUTS + 1], uc[N_INPUTS + 1];
     for (int r = 0; r < rows; r++) {
@@ -114,7 +118,7 @@ class _Compiled:
         rates, output = symbolic_maps(physics, values, tensors)
         self.rates, self.output = list(rates.reshape(-1)), list(output.reshape(-1))
         self.name = physics.display_name
-        library = cached_library(_source(self.rates, n, m), "simulate", "the compiled simulation")
+        library = cached_library(_source(self, n, m), "simulate", "the compiled simulation")
         self._run = loaded(library).simulate_rows
         self._run.restype = ctypes.c_int
         self._run.argtypes = [ctypes.c_int] * 4 + [ctypes.c_void_p] * 5
@@ -139,14 +143,28 @@ class _Compiled:
         return torch.from_numpy(states)
 
 
+class _Printer(C99CodePrinter):
+    """C99, with each lifted subexpression (:mod:`~torchpaml._symbolic.hoist`) read from its element of ``p_``."""
+
+    def _print_Symbol(self, expr: sympy.Symbol) -> str:
+        k = slot(expr)
+        return super()._print_Symbol(expr) if k is None else f"p_[{k}]"
+
+
+#: Squares and cubes printed as products (``x*x*x``), as torch's ``pow`` computes them (to the bit, so the compiled
+#: form and the engine round alike), where C's ``pow`` is a call to the maths library.
+_PRODUCTS = create_expand_pow_optimization(3)
+
+
 def c_function(name: str, arguments: str, assignments: dict[str, sympy.Expr]) -> str:
     """``static void name(arguments)`` that evaluates ``assignments`` ({C lvalue: expression}), common
-    subexpressions first: the one printer of every compiled function."""
-    printer = C99CodePrinter()
+    subexpressions first, squares and cubes as products (:data:`_PRODUCTS`): the one printer of every compiled
+    function."""
+    printer = _Printer()
     shared, reduced = sympy.cse(list(assignments.values()), symbols=sympy.numbered_symbols("c_"))
     try:
-        body = "".join(f"    const double {name} = {printer.doprint(value)};\n" for name, value in shared)
-        body += "".join(f"    {target} = {printer.doprint(value)};\n"
+        body = "".join(f"    const double {name} = {printer.doprint(_PRODUCTS(value))};\n" for name, value in shared)
+        body += "".join(f"    {target} = {printer.doprint(_PRODUCTS(value))};\n"
                         for target, value in zip(assignments, reduced, strict=True))
     except PrintMethodNotImplementedError as error:  # a function C has no name for: the engine takes the physics
         raise UnbuildableError(f"{name}: its closed form holds a function C has no name for "
@@ -164,9 +182,29 @@ def rates_function(rates: list) -> str:
     return c_function("rates", RATES_ARGUMENTS, {f"out_[{i}]": value for i, value in enumerate(rates)})
 
 
-def _source(rates: list, n: int, m: int) -> str:
-    """The C of ``rates`` (:func:`rates_function`) and of the RK4 loop :data:`_LOOP`."""
-    return f"#include <math.h>\n#define N_STATES {n}\n#define N_INPUTS {m}\n" + rates_function(rates) + _LOOP
+def extend_function(constants: list, count: int) -> str:
+    """The C of ``extend(given_, p_)``: the ``count`` parameters copied from ``given_``, then the subexpressions of
+    the parameters alone that :func:`~torchpaml._symbolic.hoist.hoisted` lifted out (in ``given_``), past them; and
+    ``N_EXTENDED``, the array's size. Each loop extends its parameters once per call."""
+    given = {sympy.Symbol(f"p_[{i}]", real=True): sympy.Symbol(f"given_[{i}]", real=True) for i in range(count)}
+    copies = {f"p_[{i}]": symbol for i, symbol in enumerate(given.values())}
+    lifted = {target: value.xreplace(given) for target, value in extension(constants, count).items()}
+    return (f"#define N_EXTENDED {max(count + len(constants), 1)}\n"
+            + c_function("extend", "const double *given_, double *p_", {**copies, **lifted}))
+
+
+def variables(symbols: dict) -> set:
+    """The symbols of a closed form that change within a simulation: the time, the states and the inputs."""
+    return {symbols["t"], *symbols["x"], *symbols["u"]}
+
+
+def _source(form: _Compiled, n: int, m: int) -> str:
+    """The C of ``extend`` (:func:`extend_function`), ``rates`` (:func:`rates_function`) and the RK4 loop
+    :data:`_LOOP`."""
+    count = len(form.symbols["p"])
+    (rates,), constants = hoisted([form.rates], variables(form.symbols), count)
+    return (f"#include <math.h>\n#define N_STATES {n}\n#define N_INPUTS {m}\n" + extend_function(constants, count)
+            + rates_function(rates) + _LOOP)
 
 
 def _attribute_key(value) -> object:

@@ -39,13 +39,14 @@ import torch
 
 from torchpaml._errors import SimulationError
 from torchpaml._simulate.blowup import blown_up, checked_output
-from torchpaml._simulate.compiled import (RATES_ARGUMENTS, _Compiled, c_function, compiled_form, rates_function,
-                                          sequential_states, warn_once)
+from torchpaml._simulate.compiled import (RATES_ARGUMENTS, _Compiled, c_function, compiled_form, extend_function,
+                                          rates_function, sequential_states, variables, warn_once)
 from torchpaml._simulate.differences import difference_step
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.method import Method
 from torchpaml._simulate.steps import BDF_NEW, BDF_OLD, D, GAMMA, HALVINGS, MAX_ITERATIONS, NEWTON_TOL, STALL_TOL
 from torchpaml._symbolic.compiler import UnbuildableError, cached_library, loaded
+from torchpaml._symbolic.hoist import hoisted
 
 __all__ = ["compiled_jacobian", "compiled_states", "implicit_states"]
 
@@ -113,8 +114,10 @@ static void stage_inputs(const double *u0, const double *u1, int foh, double fa,
 }
 
 int rk4_rows(int rows, int samples, int substeps, int foh, int columns, const int *column, const double *t,
-             const double *u, const double *x0, const double *p_, double *states, double *y, double *J,
-             double *sens) {
+             const double *u, const double *x0, const double *given_, double *states, double *y,
+             double *J, double *sens) {
+    double p_[N_EXTENDED];
+    extend(given_, p_);
     Work w;
     double *all = work(&w, columns);
     if (all == NULL) return -1;
@@ -259,8 +262,10 @@ static int implicit_sensitivities(double tz, const double *z, const double *uz, 
 }
 
 int trbdf2_rows(int rows, int samples, int substeps, int foh, int columns, const int *column, const double *t,
-                const double *u, const double *x0, const double *p_, double *states, double *y, double *J,
-                double *sens) {
+                const double *u, const double *x0, const double *given_, double *states, double *y,
+                double *J, double *sens) {
+    double p_[N_EXTENDED];
+    extend(given_, p_);
     Work w;
     double *all = work(&w, columns);
     if (all == NULL) return -1;
@@ -328,9 +333,10 @@ def _derivatives(expressions: list, variables: list, rows: str, width: int) -> d
 
 
 def _source(form: _Compiled, n: int, m: int) -> str:
-    """The C of ``rates``, ``derivatives`` ($f_x$, $f_\\theta$), ``state_jacobian`` ($f_x$ alone, for TR-BDF2's
-    Newton), ``outputs`` ($h$, $h_x$, $h_\\theta$) and :data:`_LOOP`; the zero entries of the derivative arrays are
-    never written (they are zeroed once)."""
+    """The C of ``extend``, ``rates``, ``derivatives`` ($f_x$, $f_\\theta$), ``state_jacobian`` ($f_x$ alone, for
+    TR-BDF2's Newton), ``outputs`` ($h$, $h_x$, $h_\\theta$) and :data:`_LOOP`, with the subexpressions of the
+    parameters alone lifted into ``extend`` (:func:`~torchpaml._simulate.compiled.extend_function`); the zero entries
+    of the derivative arrays are never written (they are zeroed once)."""
     x, p = form.symbols["x"], form.symbols["p"]
     width = max(len(p), 1)
     slopes = _derivatives(form.rates, x, "fx_", n)
@@ -339,12 +345,16 @@ def _source(form: _Compiled, n: int, m: int) -> str:
     jacobian.update({key.replace("fx_", "M_"): value for key, value in slopes.items()})
     outputs = {f"y_[{o}]": value for o, value in enumerate(form.output)}
     outputs.update({**_derivatives(form.output, x, "hx_", n), **_derivatives(form.output, p, "hp_", width)})
+    groups = [form.rates, list(derivatives.values()), list(jacobian.values()), list(outputs.values())]
+    (rates, *lifted), fixed = hoisted(groups, variables(form.symbols), len(p))
+    derivatives, jacobian, outputs = (dict(zip(d, values, strict=True))
+                                      for d, values in zip((derivatives, jacobian, outputs), lifted, strict=True))
     constants = {"GAMMA": GAMMA, "D_COEFFICIENT": D, "BDF_NEW": BDF_NEW, "BDF_OLD": BDF_OLD, "NEWTON_TOL": NEWTON_TOL,
                  "STALL_TOL": STALL_TOL, "MAX_ITERATIONS": MAX_ITERATIONS, "HALVINGS": HALVINGS}
     head = (f"#include <math.h>\n#include <stdlib.h>\n#define N_STATES {n}\n#define N_INPUTS {m}\n"
             f"#define N_OUTPUTS {len(form.output)}\n#define N_PARAMS {width}\n"
             + "".join(f"#define {name} {value!r}\n" for name, value in constants.items()))
-    return (head + rates_function(form.rates)
+    return (head + extend_function(fixed, len(p)) + rates_function(rates)
             + c_function("derivatives", RATES_ARGUMENTS.replace("double *out_", "double *fx_, double *fp_"),
                          derivatives)
             + c_function("state_jacobian", RATES_ARGUMENTS.replace("double *out_", "double *M_"), jacobian)
