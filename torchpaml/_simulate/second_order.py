@@ -9,14 +9,16 @@ differences of the gradient agree to 1e-6) came out as 0.0124 through the engine
 **What.** Where a backward is itself differentiated (``create_graph=True``: a Hessian-vector product, a gradient
 penalty), the states are simulated again as one segment from $x_0$ (:func:`one_segment`), whose graph is every
 stage's and so differentiable to any order, and the vector-Jacobian product is taken through it, with its graph. A
-plain backward passes straight to the fast path's first derivative. The cost is that of sequential eager steps,
-about 30 µs per step of a 2-state model: seconds per 10^4 steps, paid only when a second derivative is asked for.
+plain backward passes straight to the fast path's first derivative. The cost is that of sequential eager steps with
+their graph, about 1.5 ms per step of a 2-state model forward and backward (measured on one core: 15 s per 10^4 steps),
+paid only when a second derivative is asked for; a progress line says how many steps it takes.
 Forward mode passes the fast path's tangent through. Inside a ``torch.func`` transform (``jvp``, ``vmap``, ``hessian``)
 the engine's graph is returned as it is: a custom function there needs rules of its own for each transform.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 
 import torch
@@ -24,7 +26,9 @@ import torch
 from torchpaml._simulate.compiled import transformed
 from torchpaml._simulate.dynamics import Dynamics
 
-__all__ = ["with_second_order"]
+__all__ = ["one_segment", "with_second_order"]
+
+log = logging.getLogger(__name__)
 
 
 def with_second_order(states: torch.Tensor, graph: Callable[[], torch.Tensor],
@@ -58,6 +62,8 @@ class _SecondOrder(torch.autograd.Function):
         inputs = ctx.saved_tensors
         if not torch.is_grad_enabled():
             return grad, None, *[None] * len(inputs)
+        log.info("a second derivative: the simulation again by reverse mode through each of its %d samples' steps "
+                 "(about 1.5 ms a step)", grad.shape[1])
         found = torch.autograd.grad(ctx.graph(), inputs, grad, create_graph=True, allow_unused=True)
         return None, None, *found
 
