@@ -226,3 +226,22 @@ def test_a_numerically_null_direction_of_the_physics_does_not_move_the_score():
     full = d - degenerate @ torch.linalg.lstsq(degenerate, d[:, None], driver="gelsd", rcond=1e-16).solution[:, 0]
     assert float(full @ full) < 0.999 * energy  # the full least squares spans the rounding's direction too
     assert NULL_DIRECTION > 1e-14
+
+
+def test_a_column_of_rounding_does_not_move_the_score():
+    """A parameter that does not move the output (its Jacobian column the rounding of a central difference: 0 on one
+    copy of the records, 1e-12 on the same records perturbed) gives the same projection either way: the column is
+    left out before the scaling to unit norm, which would otherwise make its noise a direction (the cascaded tanks'
+    seed-4 records: first-order scores 20 to 60 % apart, another ladder)."""
+    from torchpaml._diagnostics.ranking.first_order import NULL_COLUMN, beyond_physics
+
+    generator = torch.Generator().manual_seed(0)
+    J = torch.randn(500, 3, generator=generator, dtype=torch.float64)
+    d = torch.randn(500, generator=generator, dtype=torch.float64)
+    noise = torch.randn(500, generator=generator, dtype=torch.float64)
+    projected, energy = beyond_physics(d, torch.cat([J, torch.zeros(500, 1, dtype=torch.float64)], dim=1))
+    again, again_energy = beyond_physics(d, torch.cat([J, 1e-12 * noise[:, None]], dim=1))
+    assert again_energy == pytest.approx(energy, rel=1e-12) and torch.allclose(again, projected, atol=1e-12)
+    weak, weak_energy = beyond_physics(d, torch.cat([J, 1e-6 * noise[:, None]], dim=1))  # small, but it moves y
+    assert weak_energy < 0.999 * energy
+    assert 1e-12 < NULL_COLUMN < 1e-6
