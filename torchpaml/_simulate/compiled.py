@@ -47,7 +47,7 @@ from torchpaml._errors import CompiledPathWarning, ConfigurationError
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.method import Method
 from torchpaml._symbolic.compiler import UnbuildableError, cached_library, compiler, loaded
-from torchpaml._symbolic.hoist import extension, hoisted, slot
+from torchpaml._symbolic.hoist import hoisted, slot
 from torchpaml._symbolic.trace import symbolic_maps
 
 __all__ = ["MAX_PARAMETERS", "MIN_STEPS", "compiled_form", "sequential_states", "transformed", "warn_once"]
@@ -188,7 +188,7 @@ def extend_function(constants: list, count: int) -> str:
     ``N_EXTENDED``, the array's size. Each loop extends its parameters once per call."""
     given = {sympy.Symbol(f"p_[{i}]", real=True): sympy.Symbol(f"given_[{i}]", real=True) for i in range(count)}
     copies = {f"p_[{i}]": symbol for i, symbol in enumerate(given.values())}
-    lifted = {target: value.xreplace(given) for target, value in extension(constants, count).items()}
+    lifted = {f"p_[{count + k}]": value.xreplace(given) for k, value in enumerate(constants)}
     return (f"#define N_EXTENDED {max(count + len(constants), 1)}\n"
             + c_function("extend", "const double *given_, double *p_", {**copies, **lifted}))
 

@@ -443,5 +443,7 @@ def simulate_shooting(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: t
         states = solution.states(physics, x0)
     elif warm is not None:
         warm.states = states.detach()
+    if not torch.is_grad_enabled():
+        return states
     inputs = [v for v in (t, u, x0, *physics.parameters(), *constants(physics)) if v.requires_grad]
     return with_second_order(states, lambda: one_segment(physics, _Layout(t, u, solver, len(t), hold), x0), inputs)

@@ -90,4 +90,4 @@ def simulate_to_tolerance(run: Callable[[int], torch.Tensor], start: int, rtol: 
                     "TRBDF2(), or use Dopri5()")
             coarse, m = (fine.detach(), 2 * m) if following == 2 * m else (run(following), following)
             predicted = True  # the next fine run is the one the order predicts to pass: recorded at once
-    return (run(2 * m) if recorded and not fine.requires_grad else fine), 2 * m
+    return (run(2 * m) if recorded and not predicted else fine), 2 * m

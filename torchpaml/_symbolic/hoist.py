@@ -5,7 +5,8 @@ as $2\,e^{\rho_\zeta} e^{\rho_\omega} v$. Printed as it is, every RK4 stage eval
 though they do not change within a simulation. :func:`hoisted` replaces each largest subexpression of the parameters
 alone (a function of them, or the parameter factors of a product, the parameter terms of a sum, taken together) by
 a symbol that C reads as ``p_[count + k]`` (:func:`slot`), an element past the parameters in the same array;
-:func:`extension` is the C that fills those elements once per call of a loop. Only the place of the arithmetic moves:
+the compiled form's ``extend`` fills those elements once per call of a loop
+(:func:`~torchpaml._simulate.compiled.extend_function`). Only the place of the arithmetic moves:
 each lifted subexpression is evaluated as it was, the product or sum that held it then takes it as one factor or term.
 
 The symbol's name begins with a digest of the subexpression, so a sum or product orders its terms by what they are,
@@ -21,7 +22,7 @@ from collections.abc import Sequence
 
 import sympy
 
-__all__ = ["extension", "hoisted", "slot"]
+__all__ = ["hoisted", "slot"]
 
 _LIFTED = re.compile(r"lifted_[0-9a-f]{16}_(\d+)")
 
@@ -69,8 +70,3 @@ def slot(symbol: sympy.Symbol) -> int | None:
     """The element of the parameter array that a lifted ``symbol`` is, ``None`` for any other symbol."""
     match = _LIFTED.fullmatch(symbol.name)
     return None if match is None else int(match.group(1))
-
-
-def extension(constants: Sequence[sympy.Expr], count: int) -> dict[str, sympy.Expr]:
-    """The assignments ``p_[count + k] = constants[k]`` for a C function that extends the parameter array."""
-    return {f"p_[{count + k}]": value for k, value in enumerate(constants)}
