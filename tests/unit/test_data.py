@@ -3,7 +3,7 @@
 import pytest
 import torch
 
-from torchpaml import DataError, Record
+from torchpaml import DataError, Oscillator, Record, simulate
 
 
 def _experiment():
@@ -57,3 +57,19 @@ def test_a_metadata_line_that_is_not_a_json_object_is_refused_by_name(tmp_path, 
     path.write_text(f"{line}\nt,u,y\n0,0,0\n0.1,1,0.5\n")
     with pytest.raises(DataError, match=f"first line.*{says}.*repair it or delete the line"):
         Record.from_csv(path)
+
+
+@pytest.mark.parametrize("where", ["u", "x0"])
+def test_simulate_names_a_nan_input_instead_of_a_blow_up(where):
+    """A NaN in the input or the initial state is the data's fault: a DataError naming it and where, not a
+    SimulationError that blames the parameters."""
+    t = torch.arange(300, dtype=torch.float64) * 0.05
+    u = torch.sin(t)[None, :, None]
+    x0 = torch.zeros(1, 2, dtype=torch.float64)
+    if where == "u":
+        u = u.clone()
+        u[0, 17, 0] = float("nan")
+    else:
+        x0[0, 1] = float("inf")
+    with pytest.raises(DataError, match=rf"{where} has 1 NaN/inf value\(s\), first at index \[0, {17 if where == 'u' else 1}"):
+        simulate(Oscillator(), t, u, x0)

@@ -63,9 +63,21 @@ def simulate(
         raise DataError(f"u must have shape (batch, time={t.shape[-1]}, channel), got {tuple(u.shape)}")
     if isinstance(x0, Solver):
         raise ConfigurationError(f"simulate's fourth argument is the initial state; pass the solver by name: solver={x0!r}")
+    _check_finite("u", u)
     solver = checked_solver(solver)
     x0 = complete_state(physics, x0, u.shape[0]).to(u)
+    _check_finite("x0", x0)
     return solver.integrate(physics, t, u, x0, warm=warm, hold=check_hold(hold), knots=knots, blowup=blowup)
+
+
+def _check_finite(name: str, values: torch.Tensor) -> None:
+    """A clear :class:`~torchpaml.DataError` for NaN or infinite ``values``, which would otherwise reach the solver and
+    read as a simulation that blew up."""
+    bad = ~torch.isfinite(values.detach())
+    if bool(bad.any()):
+        first = [int(i) for i in bad.nonzero()[0]]
+        raise DataError(f"{name} has {int(bad.sum())} NaN/inf value(s), first at index {first}; drop or interpolate "
+                        "those samples before simulating")
 
 
 def checked_solver(solver: Solver | None) -> Solver:
