@@ -18,9 +18,11 @@ def score(criterion: float, validation: float, model=None) -> ModelScore:
     return ModelScore("m", "m", {}, 0.01, validation, criterion, model or Oscillator(), samples=SAMPLES)
 
 
-def evidence(effect: str, criterion: float | None, validation: float = 0.05, unphysical=()) -> EffectEvidence:
+def evidence(effect: str, criterion: float | None, validation: float = 0.05, unphysical=(), states: int = 0,
+             generic: bool = False) -> EffectEvidence:
     refit = None if criterion is None else score(criterion, validation)
-    return EffectEvidence(effect, effect, 1.0, 1, 0.0, refit=refit, unphysical=list(unphysical))
+    return EffectEvidence(effect, effect, 1.0, 1, 0.0, refit=refit, unphysical=list(unphysical), states=states,
+                          generic=generic)
 
 
 def test_a_model_proposes_its_accepted_candidates_recommended_first_and_no_equivalent_or_unphysical_one():
@@ -31,6 +33,17 @@ def test_a_model_proposes_its_accepted_candidates_recommended_first_and_no_equiv
     assert [e.effect for e in proposals(ranking, 3)] == ["a", "b"]
     assert [e.effect for e in proposals(ranking, 1)] == ["a"]
     assert proposals(Ranking(baseline, [evidence("weak", -5.0), evidence("b", -40.0)], RULE), 3) == []
+
+
+def test_a_runner_up_of_a_more_complex_kind_than_the_recommended_one_is_not_proposed():
+    """The simpler-effect rule kept the static choice over them: a generic or memory runner-up would climb a path the
+    rule already turned down (Silverbox's latent state beside its constant force, 200 of 255 s)."""
+    baseline = score(0.0, 0.10)
+    static = [evidence("force", -50.0), evidence("latent", -49.0, generic=True), evidence("lag", -48.0, states=1),
+              evidence("spring", -40.0)]
+    assert [e.effect for e in proposals(Ranking(baseline, static, RULE), 3)] == ["force", "spring"]
+    memory = [evidence("lag", -50.0, states=1), evidence("latent", -49.0, generic=True), evidence("force", -40.0)]
+    assert [e.effect for e in proposals(Ranking(baseline, memory, RULE), 3)] == ["lag", "force"]
 
 
 def test_the_greedy_proposal_always_climbs_and_the_others_take_the_places_by_their_criterion():

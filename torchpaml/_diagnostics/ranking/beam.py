@@ -5,7 +5,9 @@ through the rung's runner-up would. So the ladder keeps up to ``beam`` models (:
 
 1. **Proposals.** Each model of the beam whose ranking recommends an effect proposes its accepted candidates: the
    recommended one, then each other refitted candidate the selection rule accepts over that rung's baseline (physical,
-   and not one of the recommended one's equivalents, which give its output), in the ranking's order.
+   not one of the recommended one's equivalents, which give its output, and not of a more complex kind than the
+   recommended one: the simpler-effect rule, :mod:`~torchpaml._diagnostics.ranking.occam`, already found that it
+   does not beat it), in the ranking's order.
 2. **The next beam** (:func:`next_beam`). The greedy path's proposal (the first of the greedy path's model) always
    climbs; the other places go to the remaining proposals within :data:`REACH` (2) of its validation mismatch, by
    their validation criterion, the model's own states charged as parameters (:func:`charged`), lowest first. A
@@ -27,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
+from torchpaml._diagnostics.ranking.occam import kind
 from torchpaml._diagnostics.ranking.selection import SelectionRule
 
 __all__ = ["BEAM", "REACH", "BeamEnd", "charged", "chosen_end", "left_behind", "next_beam", "proposals"]
@@ -89,7 +92,8 @@ def proposals(ranking: Ranking, width: int) -> list[EffectEvidence]:
     if first is None:
         return []
     others = [e for e in ranking.entries if e is not first and e.refit is not None and not e.unphysical
-              and e.effect not in ranking.equivalent and ranking.rule.accepts(ranking.baseline, e.refit)]
+              and e.effect not in ranking.equivalent and kind(e) <= kind(first)
+              and ranking.rule.accepts(ranking.baseline, e.refit)]
     return [first, *others][:width]
 
 
