@@ -309,3 +309,33 @@ def test_a_form_found_on_top_of_stand_ins_is_refitted_alone_and_replaces_them():
     assert set(terms) == {"v*x**2"} and terms["v*x**2"] == pytest.approx(-1.0, rel=0.05), content
     assert set(diagnosis.final.model.effects) == {"discovered"}
     assert diagnosis.final.nrmse_validation < 1.2 * floor, diagnosis.verdict
+
+
+
+WITH_THE_LIBRARY = {  # issue 56's users: (truth, their physics, the term, its coefficient)
+    "a user's tank draining as sqrt(level)": (lambda: Tank(k=1e-4, b=0.5, a=0.8, learn=()), lambda: Tank(k=0.3, b=0.4),
+                                              "sqrt(Abs(level))", -0.8),
+    "a user's Duffing with damping x**2 v": (
+        lambda: RigidBody(4.0, 0.4, 4.0, 2.0, learn=()) + HiddenForce(-1.0, lambda x, v, u: x**2 * v),
+        lambda: RigidBody(3.0, 0.6, 3.0, 1.0), "v*x**2", -1.0),
+}
+
+
+@pytest.mark.parametrize("case", sorted(WITH_THE_LIBRARY))
+def test_with_the_library_a_term_outside_it_ends_the_diagnosis_not_its_stand_ins(case):
+    """A user's physics whose device has a term outside the library (1 % noise, 4 001 samples; the library's
+    candidates and discovery together, as ``discover: true`` runs them): whatever stands in for the term on the
+    ladder (measured: a dead zone and a latent state for the tank), the final model is the physics with the
+    discovered term, within 1.2 times the floor, and no effect's own state is kept."""
+    truth, start, term, coefficient = WITH_THE_LIBRARY[case]
+    train = Simulated(truth(), "pseudorandom", 1.0, [0], 200.0, 0.05, noise=0.01).experiments()
+    validation = Simulated(truth(), "multisine", 1.0, [1], 200.0, 0.05, noise=0.01).experiments()
+    clean = Simulated(truth(), "multisine", 1.0, [1], 200.0, 0.05).experiments()[0]
+    floor = mismatch(validation[0].y, clean.y)
+    physics = start()
+    diagnosis = diagnose(physics, default_effects(), train, validation, discovery=Discoverer())
+    terms = {t["term"]: t["coefficient"] for t in discovery_to_dict(diagnosis.discovery)["terms"]}
+    assert term in terms and terms[term] == pytest.approx(coefficient, rel=0.1), terms
+    assert set(diagnosis.final.model.effects) == {"discovered"}, diagnosis.verdict
+    assert diagnosis.final.model.state_dim == physics.state_dim  # no state of an effect's own
+    assert diagnosis.final.nrmse_validation < 1.2 * floor, diagnosis.verdict
