@@ -11,7 +11,8 @@ import pytest
 import torch
 
 from torchpaml import CoulombFriction, CubicStiffness, Oscillator, Pendulum, Record, Simulated
-from torchpaml._diagnostics.analysis.noise_floor import input_period, noise_floor
+from torchpaml._diagnostics.analysis.noise_floor import MIN_RUN_SAMPLES, input_period, noise_floor
+from torchpaml.leaderboard import noise_floor as leaderboard_noise_floor
 from tests.two_mass import TwoMass
 
 SYSTEMS = {
@@ -75,3 +76,27 @@ def test_where_the_input_repeats_the_floor_is_read_from_the_repeats():
     other = Record(t, torch.randn(samples, 1, generator=generator, dtype=torch.float64), y)
     assert input_period(other) is None and noise_floor([other]) > 0.5
     assert noise_floor([record], [Record(t[:1000], u[:1000], 2 * y[:1000])]) == pytest.approx(0.005, rel=0.03)
+
+
+def test_where_the_input_repeats_only_in_runs_the_floor_is_read_from_them():
+    """Eight realisations of a white input, each preceded by its own last 300 samples (as Silverbox's multisines
+    are), through a response with memory (y_k = u_k + 0.8 y_{k-1}) plus 1 % noise: the input never repeats as a whole,
+    the differences read the signal, and the runs of repeats read the noise within 10 % (about 1 200 settled
+    samples). The leaderboard's reading at the known lag is the same number."""
+    generator = torch.Generator().manual_seed(3)
+    period, lead = 1000, 300
+    blocks = [torch.randn(period, generator=generator, dtype=torch.float64) for _ in range(8)]
+    u = torch.cat([torch.cat([block[-lead:], block]) for block in blocks])[:, None]
+    response = torch.zeros_like(u)
+    for k in range(len(u)):
+        response[k] = u[k] + (0.8 * response[k - 1] if k else 0.0)
+    noise = 0.01 * float(response.square().mean().sqrt())
+    y = response + noise * torch.randn(response.shape, generator=generator, dtype=torch.float64)
+    record = Record(torch.arange(len(u), dtype=torch.float64), u, y)
+    assert input_period(record) is None
+    rms = float(y.square().mean().sqrt())
+    floor = noise_floor([record])
+    assert floor == pytest.approx(0.01 * float(response.square().mean().sqrt()) / rms, rel=0.1)
+    reading, samples = leaderboard_noise_floor(record, period)
+    assert samples >= MIN_RUN_SAMPLES and floor * rms == pytest.approx(reading, rel=1e-12)
+    assert noise_floor([Record(record.t, torch.randn(u.shape, generator=generator, dtype=torch.float64), y)]) > 0.1

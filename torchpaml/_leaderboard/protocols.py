@@ -7,30 +7,27 @@ from __future__ import annotations
 import copy
 import math
 
-import numpy as np
 import torch
 
 from torchpaml._data import Record
+from torchpaml._diagnostics.analysis.noise_floor import RUN_WINDOW, repeated_runs, settled_differences
 
 __all__ = ["noise_floor", "periodic_twice", "with_effect"]
 
 
-def noise_floor(record: Record, period: int, window: int = 64) -> tuple[float, int]:
+def noise_floor(record: Record, period: int, window: int = RUN_WINDOW) -> tuple[float, int]:
     r"""The output noise's RMS (the data's unit) where ``record``'s input repeats at lag ``period``, and how many
-    samples it rests on. Where $u_k \approx u_{k+P}$ over a run of at least ``2 * window`` samples (the mean gap over
-    ``window`` samples below a tenth of the input's RMS) and the response has settled (each run's second half),
-    $y_k - y_{k+P}$ is the difference of two noise samples: the floor is its RMS over $\sqrt 2$. Raises
-    ``ValueError`` where the input never repeats."""
-    u, y = record.u[:, 0].numpy(), record.y[:, 0].numpy()
-    gap = np.abs(u[:-period] - u[period:])
-    mean_gap = np.convolve(gap, np.ones(window) / window, mode="same")
-    repeats = np.nonzero(mean_gap < 0.1 * np.sqrt(np.mean(u**2)))[0]
-    runs = [run for run in np.split(repeats, np.nonzero(np.diff(repeats) > 1)[0] + 1) if len(run) > 2 * window]
+    samples it rests on: over the runs of repeats (:func:`~torchpaml._diagnostics.analysis.noise_floor.repeated_runs`:
+    $u_k \approx u_{k+P}$ over ``window`` samples), once the response has settled (each run's second half),
+    $y_k - y_{k+P}$ is the difference of two noise samples, so the floor is its RMS over $\sqrt 2$:
+    the diagnosis' reading from runs of repeats, at a given lag. Raises ``ValueError`` where the input never
+    repeats."""
+    runs = repeated_runs(record.u, period, window)
     if not runs:
         raise ValueError(f"the input of {record.name!r} does not repeat at lag {period} over {2 * window} samples: "
                          "no noise floor can be read from it")
-    differences = np.concatenate([y[run[len(run) // 2:]] - y[run[len(run) // 2:] + period] for run in runs])
-    return float(differences.std()) / math.sqrt(2), len(differences)
+    differences = settled_differences(record.y[:, 0].detach().to(torch.float64), runs, period)
+    return float(differences.square().mean().sqrt()) / math.sqrt(2), len(differences)
 
 
 def periodic_twice(record: Record) -> Record:
