@@ -427,7 +427,7 @@ def diagnose(
         complete = hybrids[-1].adequacy.complete
         probes = None if prober is None else prober.probe(ladder.rankings[-1], train, validation, ranker=ranker,
                                                           deadline=deadline, discovering=discovery is not None,
-                                                          complete=complete, first=base)
+                                                          complete=complete, first=base, start=physics)
         found = None if discovery is None else _discovered(discovery, ladder, train, validation, deadline, complete)
         if probes is not None and found is not None:
             probes = probes.with_discovery(found)
