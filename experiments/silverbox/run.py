@@ -12,8 +12,8 @@ samples are scored (:meth:`~torchpaml.leaderboard.Benchmark.score`).
    all three learnable, started from the measured frequency response (:func:`frequency_response_start`).
 2. :func:`~torchpaml.diagnose` with the library's effects, each record's initial state estimated (``Estimate()``:
    the training record starts mid-signal, where a start from rest made its first 100 samples 90 % of the fit's
-   cost): the ladder adds what the validation asks for; the
-   Chebyshev residual goes on the first and the last rung; the probes say where what is left points.
+   cost): the ladder adds what the validation asks for; the Chebyshev residual goes on the first and the last rung;
+   the probes say where what is left points.
 3. Every rung, the hybrid and every probe's extension are scored on the test records.
 4. With ``--discover``, the discovery of a force outside the library
    (:func:`~torchpaml._diagnostics.discover_missing_force`) runs too; its model is scored on the test
@@ -45,7 +45,8 @@ from pathlib import Path
 
 import numpy as np
 
-from torchpaml import Diagnosis, Discoverer, Estimate, Oscillator, Ranker, Record, default_effects, diagnose, write_report
+from torchpaml import (Diagnosis, Discoverer, Estimate, Oscillator, Ranker, Record, default_effects, diagnose,
+                       write_report)
 from torchpaml.cli.progress import progress_lines
 from torchpaml.leaderboard import (SCHEMA_VERSION, arguments, benchmark, diagnosed_goal, hybrid_entry, ladder_entries,
                                    noise_floor, tried_entries, write_result)

@@ -28,7 +28,7 @@ $$ \hat\sigma^2 = \min_{1 \le k \le K} \frac{\sum (\Delta^k y)^2}{(N - k)\binom{
 ($K$ = :data:`MAX_ORDER`). For white noise the signal only adds, so this is an upper bound: tight where the output
 is sampled several times faster than it moves (within 2 % of the noise added to simulated pendulum, oscillator and
 Duffing records at 10 and 20 samples per second, ``tests/unit/test_noise_floor.py``), loose where the record's
-bandwidth nears the Nyquist frequency (Silverbox's records read 1.9 % by differences, 0.55 % from their repeated
+bandwidth nears the Nyquist frequency (Silverbox's records read 1.9 % by differences, 0.54 % from their repeated
 runs).
 Noise that is not white reads low, as the differences shrink it with the signal: Bouc-Wen's training record reads
 0.87 % by differences and 1.12 % from its repeats (its benchmark states 1.2 %).
@@ -180,8 +180,9 @@ def _by_differences(outputs: list[torch.Tensor]) -> float:
 
 def noise_floor(records: Sequence[Record], scale: Sequence[Record] | None = None) -> float:
     """The noise floor (module docstring): the output noise read from ``records`` (from their repeats where they give
-    it, else the lower of the readings by differences and from runs of repeats), as a fraction of the RMS of the outputs of ``scale`` (default ``records``): the records
-    whose mismatch it is compared with. 0 for noise-free outputs."""
+    it, else the lower of the readings by differences and from runs of repeats), as a fraction of the RMS of the
+    outputs of ``scale`` (default ``records``): the records whose mismatch it is compared with. 0 for noise-free
+    outputs."""
     scale = records if scale is None else scale
     shares = []
     for c in range(records[0].y.shape[1]):

@@ -15,9 +15,9 @@ validation records its fit did not see), and says where in time the error sits (
 (:attr:`~torchpaml.AbstractEffect.far_strength`, e.g. a sensor that reads only the magnitude) is also refitted from
 it on the first rung's physics, without the effects the ladder fitted in its place, and on the physics as the user
 started it: a linear fit of a magnitude-only output is degenerate (no damping, a gain near zero), and a refit from
-there stays in its valley (73 % on training where the user's start reaches the 2 % noise). Each place's *validation gain* is the share by which its
-extension lowers the model's validation mismatch; the table names the place with the largest gain
-(:class:`~torchpaml._diagnostics.mismatch.result.MismatchProbes`).
+there stays in its valley (73 % on training where the user's start reaches the 2 % noise). Each place's *validation
+gain* is the share by which its extension lowers the model's validation mismatch; the table names the place with the
+largest gain (:class:`~torchpaml._diagnostics.mismatch.result.MismatchProbes`).
 """
 
 from __future__ import annotations
@@ -40,7 +40,6 @@ from torchpaml._diagnostics.discovery.output_map import output_closed_form
 from torchpaml._diagnostics.mismatch.places import FORCE, INITIAL_STATE, OUTPUT_MAP, PLACES, Place
 from torchpaml._diagnostics.mismatch.result import DISCOVERED, MismatchProbes, ProbeResult, ranked
 from torchpaml._diagnostics.ranking.first_order import MIN_ACTING_SHARE
-from torchpaml._physics.base import AbstractPhysics
 from torchpaml._diagnostics.ranking.ranker import Ranker
 from torchpaml._diagnostics.ranking.refits import Refits, effect_bounds
 from torchpaml._diagnostics.ranking.scoring import as_records, score_model, scored_mismatch
@@ -48,6 +47,7 @@ from torchpaml._diagnostics.ranking.steps import applicable, placed, scored
 from torchpaml._diagnostics.results import EffectEvidence, ModelScore, Ranking
 from torchpaml._errors import ConfigurationError, ResolutionError, SimulationError
 from torchpaml._fit.initial_state import START_WINDOW, Estimate
+from torchpaml._physics.base import AbstractPhysics
 from torchpaml._physics.effects import EFFECTS
 from torchpaml._fit.one_thread import one_thread
 
