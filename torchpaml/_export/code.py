@@ -25,6 +25,7 @@ from torchpaml._export.closed_form import ClosedForm, closed_form
 from torchpaml._export.residual_step import ResidualStep, residual_step
 from torchpaml._fit.fitted_model import FittedModel
 from torchpaml._grid import check_hold
+from torchpaml._simulate.compiled import PRODUCTS
 from torchpaml._text import inert_comment
 
 __all__ = ["ExportedStep", "c_code", "c_unpacking", "exported_step", "latex_code", "python_code"]
@@ -164,8 +165,8 @@ def c_code(step: ExportedStep) -> str:
     """The C99 text (module docstring): ``derivative``, ``output`` and ``step`` on double arrays."""
     form, printer = step.grey_box("code").form, C99CodePrinter()
     unpack = c_unpacking(form)
-    rates = "".join(f"    rate_[{i}] = {printer.doprint(e)};\n" for i, e in enumerate(form.rates))
-    outputs = "".join(f"    output_[{i}] = {printer.doprint(e)};\n" for i, e in enumerate(form.output))
+    rates = "".join(f"    rate_[{i}] = {printer.doprint(PRODUCTS(e))};\n" for i, e in enumerate(form.rates))
+    outputs = "".join(f"    output_[{i}] = {printer.doprint(PRODUCTS(e))};\n" for i, e in enumerate(form.output))
     n, m = len(form.states), len(form.inputs)
     slope = "(u1[i] - u0[i]) / h" if step.hold == "foh" else "0.0"
     return f"""/* {step.equation}: exported by torchpaml (RK4, {step.substeps} substep(s) per sample, {step.hold} input). */

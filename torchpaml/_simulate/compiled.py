@@ -50,7 +50,7 @@ from torchpaml._symbolic.compiler import UnbuildableError, cached_library, compi
 from torchpaml._symbolic.hoist import hoisted, slot
 from torchpaml._symbolic.trace import symbolic_maps
 
-__all__ = ["MAX_PARAMETERS", "MIN_STEPS", "compiled_form", "sequential_states", "transformed", "warn_once"]
+__all__ = ["MAX_PARAMETERS", "MIN_STEPS", "PRODUCTS", "compiled_form", "sequential_states", "transformed", "warn_once"]
 
 log = logging.getLogger(__name__)
 
@@ -152,19 +152,20 @@ class _Printer(C99CodePrinter):
 
 
 #: Squares and cubes printed as products (``x*x*x``), as torch's ``pow`` computes them (to the bit, so the compiled
-#: form and the engine round alike), where C's ``pow`` is a call to the maths library.
-_PRODUCTS = create_expand_pow_optimization(3)
+#: form and the engine round alike), where C's ``pow`` is a call to the maths library: every C torchpaml writes (the
+#: compiled forms, the tracker's filter, the exported model) prints its expressions through it.
+PRODUCTS = create_expand_pow_optimization(3)
 
 
 def c_function(name: str, arguments: str, assignments: dict[str, sympy.Expr]) -> str:
     """``static void name(arguments)`` that evaluates ``assignments`` ({C lvalue: expression}), common
-    subexpressions first, squares and cubes as products (:data:`_PRODUCTS`): the one printer of every compiled
+    subexpressions first, squares and cubes as products (:data:`PRODUCTS`): the one printer of every compiled
     function."""
     printer = _Printer()
     shared, reduced = sympy.cse(list(assignments.values()), symbols=sympy.numbered_symbols("c_"))
     try:
-        body = "".join(f"    const double {name} = {printer.doprint(_PRODUCTS(value))};\n" for name, value in shared)
-        body += "".join(f"    {target} = {printer.doprint(_PRODUCTS(value))};\n"
+        body = "".join(f"    const double {name} = {printer.doprint(PRODUCTS(value))};\n" for name, value in shared)
+        body += "".join(f"    {target} = {printer.doprint(PRODUCTS(value))};\n"
                         for target, value in zip(assignments, reduced, strict=True))
     except PrintMethodNotImplementedError as error:  # a function C has no name for: the engine takes the physics
         raise UnbuildableError(f"{name}: its closed form holds a function C has no name for "

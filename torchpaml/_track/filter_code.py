@@ -29,6 +29,7 @@ import sympy
 from sympy.printing.c import C99CodePrinter
 
 from torchpaml._export.code import ExportedStep, c_code, c_unpacking
+from torchpaml._simulate.compiled import PRODUCTS
 from torchpaml._symbolic.compiler import cached_library, loaded
 
 __all__ = ["CompiledFilter", "compiled_filter", "filter_source"]
@@ -170,7 +171,7 @@ def _matrix_function(name: str, signature: str, matrix: sympy.Matrix, step: Expo
     printer = C99CodePrinter()
     matrix = matrix.applyfunc(lambda e: e.rewrite(sympy.Piecewise) if e.has(sympy.Heaviside) else e)
     unpack = c_unpacking(step.form)
-    body = "".join(f"    out_[{i}] = {printer.doprint(value)};\n" for i, value in enumerate(matrix))
+    body = "".join(f"    out_[{i}] = {printer.doprint(PRODUCTS(value))};\n" for i, value in enumerate(matrix))
     return f"static void {name}({signature}) {{\n    (void)state_; (void)input_;\n{unpack}{body}}}\n"
 
 
