@@ -48,10 +48,10 @@ def test_complete_only_at_the_records_noise_floor():
     # verdict says how far above the floor it is
     above = assess_adequacy(0.013, 0.0129, 0.0214, 0.0214, residual_white=True, noise_floor=0.010)
     assert not above.complete and above.inadequate and above.noise_floor == 0.010
-    assert "on validation it is 2.1 times the noise floor read from the records (2.14 % against 1.00 %)" \
+    assert "on validation it is 2.14 times the noise floor read from the records (2.14 % against 1.00 %)" \
         in above.message
     at = assess_adequacy(0.0102, 0.0101, 0.0115, 0.0116, residual_white=True, noise_floor=0.010)  # 1.15 times
-    assert at.complete and "1.1 times the noise floor" in at.message
+    assert at.complete and "1.15 times the noise floor" in at.message
     assert assess_adequacy(0.0102, 0.0101, 0.0120, 0.0121, residual_white=True, noise_floor=0.010).complete  # 1.2
     assert not assess_adequacy(0.0102, 0.0101, 0.0121, 0.0122, residual_white=True, noise_floor=0.010).complete
     assert "more than 1000 times" in assess_adequacy(0.5, 0.3, 0.5, 0.4, noise_floor=0.0).message
@@ -62,7 +62,7 @@ def test_under_coloured_noise_the_training_residual_is_the_floor_the_validation_
     is noise above 1.2 times that floor, the validation mismatch is held to 1.2 times the training one instead."""
     coloured = assess_adequacy(0.0200, 0.0199, 0.0200, 0.0201, residual_white=True, noise_floor=0.0055)
     assert coloured.complete and not coloured.inadequate
-    assert "shows to read low" in coloured.message and "1 times its training mismatch" in coloured.message
+    assert "shows to read low" in coloured.message and "1.00 times its training mismatch" in coloured.message
     # a stand-in that fits the training record through its own states: validation above 1.2 times training
     stand_in = assess_adequacy(0.0200, 0.0199, 0.0245, 0.0246, residual_white=True, noise_floor=0.0055)
     assert not stand_in.complete and stand_in.inadequate

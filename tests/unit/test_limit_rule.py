@@ -26,7 +26,7 @@ def test_without_a_measured_floor_the_diagnosis_verdict_decides(complete, kind):
     label, evidence, sentence = limit_of(LimitFigures(0.3, "V", verdict(complete), 0.05))
     assert label == kind and "noise_floor" not in evidence
     assert evidence["validation_nrmse"] == 0.05 and evidence["diagnosis_noise_floor_nrmse"] == 0.02
-    assert "validation mismatch 5 %, 2.5 times the noise floor it reads from the records, 2 %" in sentence
+    assert "validation mismatch 5 %, 2.50 times the noise floor it reads from the records, 2 %" in sentence
 
 
 @pytest.mark.parametrize("removed, kind", [(MIN_REMOVED - 0.01, "noise floor"), (MIN_REMOVED + 0.01, "undetermined")])

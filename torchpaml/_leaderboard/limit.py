@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from torchpaml._diagnostics.analysis.adequacy import FLOOR_FACTOR, Adequacy
+from torchpaml._diagnostics.analysis.adequacy import FLOOR_FACTOR, Adequacy, times
 
 __all__ = ["LIMITS", "MIN_REMOVED", "LimitFigures", "limit_of"]
 
@@ -68,7 +68,7 @@ def limit_of(figures: LimitFigures) -> tuple[str, dict[str, float], str]:
     diagnosis = (f"the diagnosis {'calls' if adequacy.complete else 'does not call'} the final grey box complete "
                  f"(validation mismatch {100 * figures.validation:.3g} %"
                  + ("" if adequacy.noise_floor is None else
-                    f", {figures.validation / max(adequacy.noise_floor, 1e-300):.2g} times the noise floor it reads "
+                    f", {times(figures.validation / max(adequacy.noise_floor, 1e-300))} the noise floor it reads "
                     f"from the records, {100 * adequacy.noise_floor:.3g} %") + ")")
     if figures.floor is not None:
         evidence |= {"noise_floor": figures.floor, "final_over_noise_floor": e / figures.floor}
