@@ -19,8 +19,8 @@ again.
 **Where it is used.** :func:`~torchpaml._simulate.shooting.simulate_shooting` returns these states where no
 derivative is recorded; where one is, the same C with the states' sensitivities
 (:mod:`~torchpaml._simulate.compiled_gradient`), or, where that cannot carry them, Newton in the engine started from
-these states: they are the solution, so its first sweep converges and gives the sensitivities that gradients need. Where the physics cannot be compiled, :func:`sequential_states`
-returns ``None`` and the engine goes on as before: a method other than RK4 (its ``sweep`` is the method), a physics
+these states: they are the solution, so its first sweep converges and gives the sensitivities that gradients need.
+Where the physics cannot be compiled, :func:`sequential_states` returns ``None`` and the engine goes on as before: a method other than RK4 (its ``sweep`` is the method), a physics
 that the operation table cannot take (:mod:`~torchpaml._symbolic.trace`), a structure run by ``functional_call``
 (plain tensors in the parameters' place: the engine's differences), more than :data:`MAX_PARAMETERS` parameter elements (a
 neural force: its closed form is no faster than its tensors), no C compiler, fewer than :data:`MIN_STEPS` steps

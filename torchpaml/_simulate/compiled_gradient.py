@@ -30,7 +30,7 @@ from torch.autograd import forward_ad
 
 from torchpaml._errors import SimulationError
 from torchpaml._simulate.compiled import compiled_form
-from torchpaml._simulate.compiled_jacobian import _sensitivities, compiled_states
+from torchpaml._simulate.compiled_jacobian import compiled_sensitivities, compiled_states
 from torchpaml._simulate.dynamics import Dynamics
 from torchpaml._simulate.method import Method
 
@@ -67,7 +67,7 @@ def compiled_gradient_states(physics: Dynamics, t: torch.Tensor, u: torch.Tensor
     if not parameters and not differentiated(x0):
         return compiled_states(physics, t, u, x0, solver, hold)
     steps = u.shape[0] * (len(t) - 1) * solver.substeps  # as compiled_states: short records of RK4 stay on the engine
-    compiled = _sensitivities(physics, solver) if compiled_form(physics, solver, steps) is not None else None
+    compiled = compiled_sensitivities(physics, solver) if compiled_form(physics, solver, steps) is not None else None
     if compiled is None:
         return None
     form, run = compiled

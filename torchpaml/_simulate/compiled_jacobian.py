@@ -48,20 +48,27 @@ from torchpaml._simulate.steps import BDF_NEW, BDF_OLD, D, GAMMA, HALVINGS, MAX_
 from torchpaml._symbolic.compiler import UnbuildableError, cached_library, loaded
 from torchpaml._symbolic.hoist import hoisted
 
-__all__ = ["compiled_jacobian", "compiled_states", "implicit_states"]
+__all__ = ["compiled_jacobian", "compiled_sensitivities", "compiled_states", "implicit_states"]
 
 log = logging.getLogger(__name__)
 
 _LOOP = r"""
+/* The chain rule for `rows` functions of the states and the parameters: out[r, j] = dp[r, column[j]] (0 for an
+   initial state's column) + sum_l dx[r, l] Z[j, l], written at out[r * row_step + j * column_step]. */
+static void chain(int rows, const double *dx, const double *dp, int columns, const int *column, const double *Z,
+                  double *out, int row_step, int column_step) {
+    for (int r = 0; r < rows; r++)
+        for (int j = 0; j < columns; j++) {
+            double s = column[j] >= 0 ? dp[r * N_PARAMS + column[j]] : 0.0;
+            for (int l = 0; l < N_STATES; l++) s += dx[r * N_STATES + l] * Z[j * N_STATES + l];
+            out[r * row_step + j * column_step] = s;
+        }
+}
+
 static void stage(double t_, const double *z, const double *uz, const double *p_, int columns, const int *column,
                   const double *Z, double *K, double *fx, double *fp) {
     derivatives(t_, z, uz, p_, fx, fp);
-    for (int j = 0; j < columns; j++)
-        for (int i = 0; i < N_STATES; i++) {
-            double s = column[j] >= 0 ? fp[i * N_PARAMS + column[j]] : 0.0;
-            for (int l = 0; l < N_STATES; l++) s += fx[i * N_STATES + l] * Z[j * N_STATES + l];
-            K[j * N_STATES + i] = s;
-        }
+    chain(N_STATES, fx, fp, columns, column, Z, K, 1, N_STATES);
 }
 
 /* What is asked at sample `at` (an array that is NULL is not asked): the outputs and their Jacobian, the states, and
@@ -71,12 +78,7 @@ static void emit(long at, const double *x, const double *un, const double *p_, i
     if (y != NULL) {
         double *yn = y + at * N_OUTPUTS, *Jn = J + at * N_OUTPUTS * columns;
         outputs(x, un, p_, yn, hx, hp);
-        for (int o = 0; o < N_OUTPUTS; o++)
-            for (int j = 0; j < columns; j++) {
-                double s = column[j] >= 0 ? hp[o * N_PARAMS + column[j]] : 0.0;
-                for (int l = 0; l < N_STATES; l++) s += hx[o * N_STATES + l] * S[j * N_STATES + l];
-                Jn[o * columns + j] = s;
-            }
+        chain(N_OUTPUTS, hx, hp, columns, column, S, Jn, columns, 1);
     }
     if (states != NULL)
         for (int i = 0; i < N_STATES; i++) states[at * N_STATES + i] = x[i];
@@ -442,7 +444,7 @@ def _columns(form: _Compiled, raw: dict[str, torch.Tensor], n: int, initial_stat
     return columns + ([-1 - i for i in range(n)] if initial_state else [])
 
 
-def _sensitivities(physics: Dynamics, solver: Method) -> tuple[_Compiled, _Sensitivities] | None:
+def compiled_sensitivities(physics: Dynamics, solver: Method) -> tuple[_Compiled, _Sensitivities] | None:
     """The compiled form of ``physics`` and its sensitivities' library, ``None`` where either cannot be had."""
     form = compiled_form(physics, solver)
     if form is None:
@@ -470,7 +472,7 @@ def compiled_jacobian(physics: Dynamics, raw: dict[str, torch.Tensor], t: torch.
     TR-BDF2 stage's Newton fails (a fit rejects the point, as it does where the engine's fails: one arithmetic path
     per fit, never the engine's slower Newton on the points where C's gave up), or where both sides of a difference
     fail (:func:`_difference`)."""
-    compiled = _sensitivities(physics, solver) if len(t) > 1 else None
+    compiled = compiled_sensitivities(physics, solver) if len(t) > 1 else None
     if compiled is None:
         return None
     form, run = compiled
@@ -564,7 +566,7 @@ def implicit_states(physics: Dynamics, t: torch.Tensor, u: torch.Tensor, x0: tor
                     hold: str) -> torch.Tensor | None:
     """The states (batch, time, n_state) by TR-BDF2 at ``solver.substeps`` in C, as
     :func:`~torchpaml._simulate.compiled.sequential_states` gives RK4's; ``None`` where it is left to the engine."""
-    compiled = _sensitivities(physics, solver)
+    compiled = compiled_sensitivities(physics, solver)
     if compiled is None:
         return None
     form, run = compiled
